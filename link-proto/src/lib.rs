@@ -1,0 +1,26 @@
+//! Wire messages and framing for the sliding-boundary ray tracer.
+//!
+//! Every conversation of the system (host to node, node to node) is a [`Message`]
+//! carried in a [`Frame`] with a per-link sequence number. A frame travels as
+//! `COBS(postcard(frame) ++ crc32_le) ++ 0x00`, so a receiver can resynchronise on
+//! the next zero byte after garbage, and any corrupted byte is caught by the CRC.
+//!
+//! All numbers on the wire are plain integers: fixed-point values travel as their
+//! raw bits, with the format named in each field's documentation. The largest
+//! encoded frame ([`MAX_FRAME_LEN`]) is known at compile time, so every buffer is
+//! a fixed array and nothing allocates.
+#![no_std]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
+
+pub mod frame;
+pub mod message;
+
+pub use frame::{
+    DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_PAYLOAD_LEN, encode_frame,
+};
+pub use message::*;
+
+/// Version of the wire protocol; nodes and host exchange it in [`Hello`].
+/// Bump it whenever a message changes shape (postcard carries no field names).
+pub const PROTOCOL_VERSION: u16 = 1;

@@ -1,0 +1,363 @@
+//! The messages of every conversation in the system.
+//!
+//! Formats of raw fixed-point fields:
+//! - `Q16.16` (`i32`): positions, radii and ray parameters `t`, in unit cubes.
+//! - `Q2.30` (`i32`): direction components.
+//! - `Q1.15` (`u16`/`u32`): colours, weights and material coefficients; 32768 is 1.0.
+//!
+//! postcard tags enum variants by index: append new variants at the end only, and
+//! bump [`crate::PROTOCOL_VERSION`] whenever a message changes shape.
+
+use postcard::experimental::max_size::MaxSize;
+use serde::{Deserialize, Serialize};
+
+/// One frame on a link: a per-link sequence number and the message it carries.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct Frame {
+    /// Sequence number of this frame on its link (wraps at 2^16).
+    pub seq: u16,
+    /// The message.
+    pub msg: Message,
+}
+
+/// Every message the host and the nodes exchange.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum Message {
+    /// Version handshake, sent first in both directions on every link.
+    Hello(Hello),
+    /// Host to all nodes: a new scene follows; drop the old one.
+    SceneBegin(SceneHeader),
+    /// Host broadcast of one sphere; also node to node when a slab moves in a slide.
+    Sphere(SphereMsg),
+    /// Host broadcast of one point light.
+    Light(LightMsg),
+    /// Host to all nodes: the scene is complete; counts let a node check it missed nothing.
+    SceneEnd(SceneEnd),
+    /// Host to one node: its place in the array and its subregion.
+    Assign(Assign),
+    /// Host to all nodes: camera, image and initial-ray assignment; start rendering.
+    RenderStart(RenderStart),
+    /// A ray with its exact traversal state, passed between nodes.
+    Ray(RayMsg),
+    /// Node to host: a ray ended; its pixel contribution and returned credit.
+    Retire(Retire),
+    /// Node to host and to driving-axis neighbours: running and waiting time of an interval.
+    Load(LoadReport),
+    /// Node to its driving-axis neighbour: slide our shared boundary to `boundary`.
+    SlideOffer(SlideOffer),
+    /// Reply to a [`SlideOffer`]: accepted or refused, with the reason.
+    SlideReply(SlideReply),
+    /// Node to the sibling of a slide: every sphere of the slab has been sent.
+    SlideDone(SlideDone),
+    /// Host to all nodes: the frame is complete; report final loads and go idle.
+    Finish(Finish),
+    /// A node reports a failure to the host. Errors are values, never panics.
+    Error(ErrorReport),
+    /// Link layer: frames up to and including `seq` were received intact.
+    Ack(u16),
+    /// Link layer: frame `seq` was lost or corrupted; send again from it.
+    Nak(u16),
+}
+
+/// Version handshake and the capacities a node was built with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct Hello {
+    /// [`crate::PROTOCOL_VERSION`] of the sender.
+    pub version: u16,
+    /// Sender's node index (row-major over the array), or `u16::MAX` for the host.
+    pub node: u16,
+    /// Capacities compiled into the sender (zero for the host).
+    pub capacity: Capacity,
+}
+
+/// Storage a node was built with; the host checks a scene against it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct Capacity {
+    /// Spheres the subregion can hold.
+    pub spheres: u32,
+    /// Sphere references over all unit cubes of the subregion.
+    pub refs: u32,
+    /// Unit cubes the subregion box can span.
+    pub cubes: u32,
+    /// Rays the node can queue.
+    pub rays: u16,
+}
+
+/// Scene-wide settings, sent before the spheres and lights.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct SceneHeader {
+    /// Grid size in unit cubes per axis (1..=256).
+    pub grid: [u16; 3],
+    /// Ambient light colour, Q1.15.
+    pub ambient: [u16; 3],
+    /// Colour of rays that leave the grid, Q1.15.
+    pub background: [u16; 3],
+    /// Maximum number of reflections along one path.
+    pub max_depth: u8,
+}
+
+/// Surface parameters of a sphere (Whitted's model).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct MaterialMsg {
+    /// Surface colour, Q1.15.
+    pub color: [u16; 3],
+    /// Ambient coefficient, Q1.15.
+    pub ambient: u16,
+    /// Diffuse coefficient, Q1.15.
+    pub diffuse: u16,
+    /// Specular coefficient, Q1.15.
+    pub specular: u16,
+    /// Phong exponent of the highlight.
+    pub shininess: u8,
+    /// Mirror reflection coefficient, Q1.15 (0 = no reflection rays).
+    pub reflect: u16,
+}
+
+/// One sphere of the scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct SphereMsg {
+    /// Scene-wide identifier; nearest-hit ties go to the lowest id.
+    pub id: u16,
+    /// Centre, Q16.16 unit cubes.
+    pub center: [i32; 3],
+    /// Radius, Q16.16 unit cubes.
+    pub radius: i32,
+    /// Surface parameters.
+    pub material: MaterialMsg,
+}
+
+/// One point light.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct LightMsg {
+    /// Scene-wide identifier.
+    pub id: u8,
+    /// Position, Q16.16 unit cubes.
+    pub position: [i32; 3],
+    /// Colour and intensity, Q1.15.
+    pub color: [u16; 3],
+}
+
+/// End of a scene broadcast.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct SceneEnd {
+    /// Number of spheres broadcast.
+    pub spheres: u32,
+    /// Number of lights broadcast.
+    pub lights: u8,
+}
+
+/// A node's place in the array and its subregion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct Assign {
+    /// Array size in nodes per axis.
+    pub array: [u16; 3],
+    /// This node's coordinate in the array.
+    pub coord: [u16; 3],
+    /// Lower corner of the subregion, in unit cubes (inclusive).
+    pub lo: [u16; 3],
+    /// Upper corner of the subregion, in unit cubes (exclusive).
+    pub hi: [u16; 3],
+    /// Driving axis of the sliding boundaries (0 = x, 1 = y, 2 = z).
+    pub driving_axis: u8,
+}
+
+/// How initial rays are created.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum InitialRays {
+    /// Every node creates the rays of its own sub-image (the paper's method).
+    Parallel,
+    /// The node holding the eye creates them all (the paper's Fig. 7 result B).
+    EyeNode,
+}
+
+/// Pinhole camera: ray of pixel (i, j) has direction `corner + i du + j dv`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct CameraMsg {
+    /// Eye position, Q16.16.
+    pub eye: [i32; 3],
+    /// Direction through the centre of pixel (0, 0), Q2.30.
+    pub corner: [i32; 3],
+    /// Direction step per pixel to the right, Q2.30.
+    pub du: [i32; 3],
+    /// Direction step per pixel downward, Q2.30.
+    pub dv: [i32; 3],
+}
+
+/// Camera, image and the sub-image this node creates initial rays for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct RenderStart {
+    /// Frame number, echoed in load reports.
+    pub frame: u32,
+    /// Image width and height in pixels.
+    pub size: [u16; 2],
+    /// Camera.
+    pub camera: CameraMsg,
+    /// Initial-ray mode.
+    pub initial: InitialRays,
+    /// Pixel rectangle `[x0, y0, x1, y1)` whose initial rays this node creates.
+    pub tile: [u16; 4],
+    /// Credit of one initial ray (see [`Retire::credit`]).
+    pub credit: u64,
+}
+
+/// What a ray is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum RayKind {
+    /// From the eye through a pixel.
+    Primary,
+    /// Mirror reflection off a surface.
+    Reflected,
+    /// Toward a light; adds its weight to the pixel unless blocked before `t_max`.
+    Shadow,
+}
+
+/// Nearest hit found so far along a ray.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct HitMsg {
+    /// Ray parameter of the hit, Q16.16.
+    pub t: i32,
+    /// Sphere id.
+    pub sphere: u16,
+}
+
+/// A ray with its exact traversal state. The digital line is fully determined by
+/// `origin`, `dir` and `cell`, so a receiver continues it bit-identically.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct RayMsg {
+    /// Origin, Q16.16.
+    pub origin: [i32; 3],
+    /// Direction, Q2.30.
+    pub dir: [i32; 3],
+    /// Current unit cube of the traversal.
+    pub cell: [u16; 3],
+    /// Pixel index `y * width + x`.
+    pub pixel: u32,
+    /// Throughput per channel, Q1.15 (for shadow rays: the light's contribution).
+    pub weight: [u32; 3],
+    /// Termination credit carried by this ray.
+    pub credit: u64,
+    /// What the ray is for.
+    pub kind: RayKind,
+    /// Reflections so far along this path.
+    pub depth: u8,
+    /// Sphere the ray leaves (never hit by it), if any.
+    pub ignore: Option<u16>,
+    /// Nearest hit found so far, if any.
+    pub best: Option<HitMsg>,
+    /// Largest ray parameter of interest (shadow rays: the light), Q16.16.
+    pub t_max: Option<i32>,
+}
+
+/// A ray ended. Contributions are integers, so their sum is independent of order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct Retire {
+    /// Pixel index `y * width + x`.
+    pub pixel: u32,
+    /// Contribution to the pixel per channel, Q1.15.
+    pub rgb: [u32; 3],
+    /// Credit returned to the host. The frame is complete when the host has back
+    /// the credit of every initial ray.
+    pub credit: u64,
+    /// Rays spawned by the ending ray (shadow and reflection rays).
+    pub spawned: u8,
+}
+
+/// Running and waiting time of one node over one interval, in virtual ticks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct LoadReport {
+    /// Reporting node.
+    pub node: u16,
+    /// Interval number.
+    pub interval: u32,
+    /// Ticks spent processing rays.
+    pub running: u64,
+    /// Ticks spent waiting with nothing to process.
+    pub waiting: u64,
+    /// Rays processed in the interval.
+    pub rays: u32,
+    /// Ray/sphere tests in the interval.
+    pub sphere_tests: u32,
+    /// Unit-cube steps in the interval.
+    pub cube_steps: u32,
+}
+
+/// Proposal to move a shared driving-axis boundary.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct SlideOffer {
+    /// Interval the decision was taken in.
+    pub interval: u32,
+    /// New position of the boundary, in unit cubes along the driving axis.
+    pub boundary: u16,
+}
+
+/// Why a slide was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum SlideRefusal {
+    /// The receiver cannot hold the slab's spheres or cubes.
+    Capacity,
+    /// The boundary would leave a subregion empty.
+    Empty,
+    /// Another slide of the same boundary is in progress.
+    Busy,
+}
+
+/// Answer to a [`SlideOffer`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct SlideReply {
+    /// Boundary position that was offered.
+    pub boundary: u16,
+    /// `None` if accepted, else why not.
+    pub refused: Option<SlideRefusal>,
+}
+
+/// All spheres of a slab were sent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct SlideDone {
+    /// New boundary position.
+    pub boundary: u16,
+    /// Number of spheres sent.
+    pub spheres: u32,
+}
+
+/// End of a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct Finish {
+    /// Frame number.
+    pub frame: u32,
+}
+
+/// What went wrong in a node.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum ErrorCode {
+    /// The peer speaks another protocol version (`a` = its version).
+    Version,
+    /// A frame failed its CRC or could not be decoded.
+    BadFrame,
+    /// A message arrived that the node cannot use in its state.
+    Unexpected,
+    /// More spheres than the node can hold (`a` = capacity, `b` = needed).
+    SphereCapacity,
+    /// More sphere references than the node can hold (`a` = capacity, `b` = needed).
+    RefCapacity,
+    /// The subregion spans more cubes than the node can hold (`a` = capacity, `b` = needed).
+    CubeCapacity,
+    /// A value outside the documented range (`a` = which field).
+    OutOfRange,
+    /// A ray arrived that does not lie on its own digital line.
+    BadRay,
+    /// The scene counts in `SceneEnd` disagree with what arrived (`a` = expected, `b` = got).
+    SceneCount,
+}
+
+/// A node's error, sent to the host. Firmware never panics on input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct ErrorReport {
+    /// Node index.
+    pub node: u16,
+    /// What went wrong.
+    pub code: ErrorCode,
+    /// First detail (see [`ErrorCode`]).
+    pub a: u32,
+    /// Second detail (see [`ErrorCode`]).
+    pub b: u32,
+}

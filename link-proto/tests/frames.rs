@@ -1,0 +1,213 @@
+//! Round trips of every message, and detection of corruption at every byte.
+
+use link_proto::*;
+use proptest::prelude::*;
+
+fn decode_all(dec: &mut FrameDecoder, bytes: &[u8]) -> Vec<Result<Frame, DecodeError>> {
+    bytes.iter().filter_map(|&b| dec.push(b)).collect()
+}
+
+fn encode(frame: &Frame) -> Vec<u8> {
+    let mut out = [0u8; MAX_FRAME_LEN];
+    let n = encode_frame(frame, &mut out).unwrap();
+    out[..n].to_vec()
+}
+
+fn arb_material() -> impl Strategy<Value = MaterialMsg> {
+    (any::<[u16; 3]>(), any::<u16>(), any::<u16>(), any::<u16>(), any::<u8>(), any::<u16>()).prop_map(
+        |(color, ambient, diffuse, specular, shininess, reflect)| MaterialMsg {
+            color,
+            ambient,
+            diffuse,
+            specular,
+            shininess,
+            reflect,
+        },
+    )
+}
+
+fn arb_ray() -> impl Strategy<Value = RayMsg> {
+    (
+        (any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[u16; 3]>(), any::<u32>()),
+        (any::<[u32; 3]>(), any::<u64>(), 0u8..3, any::<u8>()),
+        (any::<Option<u16>>(), any::<Option<(i32, u16)>>(), any::<Option<i32>>()),
+    )
+        .prop_map(|((origin, dir, cell, pixel), (weight, credit, kind, depth), (ignore, best, t_max))| RayMsg {
+            origin,
+            dir,
+            cell,
+            pixel,
+            weight,
+            credit,
+            kind: [RayKind::Primary, RayKind::Reflected, RayKind::Shadow][kind as usize],
+            depth,
+            ignore,
+            best: best.map(|(t, sphere)| HitMsg { t, sphere }),
+            t_max,
+        })
+}
+
+fn arb_error_code() -> impl Strategy<Value = ErrorCode> {
+    prop_oneof![
+        Just(ErrorCode::Version),
+        Just(ErrorCode::BadFrame),
+        Just(ErrorCode::Unexpected),
+        Just(ErrorCode::SphereCapacity),
+        Just(ErrorCode::RefCapacity),
+        Just(ErrorCode::CubeCapacity),
+        Just(ErrorCode::OutOfRange),
+        Just(ErrorCode::BadRay),
+        Just(ErrorCode::SceneCount),
+    ]
+}
+
+/// Every variant of [`Message`], with arbitrary field values.
+fn arb_message() -> impl Strategy<Value = Message> {
+    let camera = (any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[i32; 3]>())
+        .prop_map(|(eye, corner, du, dv)| CameraMsg { eye, corner, du, dv });
+    prop_oneof![
+        (any::<u16>(), any::<u16>(), any::<(u32, u32, u32, u16)>()).prop_map(|(version, node, c)| {
+            Message::Hello(Hello {
+                version,
+                node,
+                capacity: Capacity { spheres: c.0, refs: c.1, cubes: c.2, rays: c.3 },
+            })
+        }),
+        (any::<[u16; 3]>(), any::<[u16; 3]>(), any::<[u16; 3]>(), any::<u8>()).prop_map(
+            |(grid, ambient, background, max_depth)| Message::SceneBegin(SceneHeader {
+                grid,
+                ambient,
+                background,
+                max_depth
+            })
+        ),
+        (any::<u16>(), any::<[i32; 3]>(), any::<i32>(), arb_material()).prop_map(|(id, center, radius, material)| {
+            Message::Sphere(SphereMsg { id, center, radius, material })
+        }),
+        (any::<u8>(), any::<[i32; 3]>(), any::<[u16; 3]>())
+            .prop_map(|(id, position, color)| Message::Light(LightMsg { id, position, color })),
+        (any::<u32>(), any::<u8>()).prop_map(|(spheres, lights)| Message::SceneEnd(SceneEnd { spheres, lights })),
+        (any::<[[u16; 3]; 4]>(), any::<u8>()).prop_map(|(a, driving_axis)| Message::Assign(Assign {
+            array: a[0],
+            coord: a[1],
+            lo: a[2],
+            hi: a[3],
+            driving_axis
+        })),
+        (any::<u32>(), any::<[u16; 2]>(), camera, any::<bool>(), any::<[u16; 4]>(), any::<u64>()).prop_map(
+            |(frame, size, camera, eye, tile, credit)| Message::RenderStart(RenderStart {
+                frame,
+                size,
+                camera,
+                initial: if eye { InitialRays::EyeNode } else { InitialRays::Parallel },
+                tile,
+                credit,
+            })
+        ),
+        arb_ray().prop_map(Message::Ray),
+        (any::<u32>(), any::<[u32; 3]>(), any::<u64>(), any::<u8>())
+            .prop_map(|(pixel, rgb, credit, spawned)| Message::Retire(Retire { pixel, rgb, credit, spawned })),
+        (any::<(u16, u32, u64, u64)>(), any::<(u32, u32, u32)>()).prop_map(|(a, b)| Message::Load(LoadReport {
+            node: a.0,
+            interval: a.1,
+            running: a.2,
+            waiting: a.3,
+            rays: b.0,
+            sphere_tests: b.1,
+            cube_steps: b.2,
+        })),
+        (any::<u32>(), any::<u16>()).prop_map(|(interval, boundary)| Message::SlideOffer(SlideOffer { interval, boundary })),
+        (any::<u16>(), 0u8..4).prop_map(|(boundary, r)| Message::SlideReply(SlideReply {
+            boundary,
+            refused: [None, Some(SlideRefusal::Capacity), Some(SlideRefusal::Empty), Some(SlideRefusal::Busy)][r as usize],
+        })),
+        (any::<u16>(), any::<u32>()).prop_map(|(boundary, spheres)| Message::SlideDone(SlideDone { boundary, spheres })),
+        any::<u32>().prop_map(|frame| Message::Finish(Finish { frame })),
+        (any::<u16>(), arb_error_code(), any::<u32>(), any::<u32>())
+            .prop_map(|(node, code, a, b)| Message::Error(ErrorReport { node, code, a, b })),
+        any::<u16>().prop_map(Message::Ack),
+        any::<u16>().prop_map(Message::Nak),
+    ]
+}
+
+fn arb_frame() -> impl Strategy<Value = Frame> {
+    (any::<u16>(), arb_message()).prop_map(|(seq, msg)| Frame { seq, msg })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    #[test]
+    fn every_message_round_trips(frame in arb_frame()) {
+        let bytes = encode(&frame);
+        prop_assert!(bytes.len() <= MAX_FRAME_LEN);
+        prop_assert_eq!(bytes[0], 0);
+        prop_assert_eq!(*bytes.last().unwrap(), 0);
+        prop_assert!(!bytes[1..bytes.len() - 1].contains(&0), "COBS leaves no zero inside");
+        let mut dec = FrameDecoder::new();
+        prop_assert_eq!(decode_all(&mut dec, &bytes), vec![Ok(frame)]);
+    }
+
+    /// Any change to any single byte (other than the delimiters) is detected, and
+    /// the decoder then reads the next frame intact.
+    #[test]
+    fn corrupted_byte_is_detected_at_every_position(frame in arb_frame(), flip in 1u8..=255, salt in any::<u8>()) {
+        let clean = encode(&frame);
+        for pos in 1..clean.len() - 1 {
+            let mut bytes = clean.clone();
+            // Replace with a different value; a zero splits the frame in two.
+            bytes[pos] = bytes[pos] ^ flip.wrapping_add(salt).max(1);
+            bytes.extend_from_slice(&clean);
+            let mut dec = FrameDecoder::new();
+            let got = decode_all(&mut dec, &bytes);
+            prop_assert!(got.len() >= 2, "pos {}: {:?}", pos, got);
+            prop_assert_eq!(got.last().unwrap(), &Ok(frame.clone()));
+            for r in &got[..got.len() - 1] {
+                prop_assert!(r.is_err(), "pos {}: corrupted frame accepted: {:?}", pos, r);
+            }
+        }
+    }
+
+    /// Arbitrary bytes never panic the decoder, and a good frame after them is read.
+    #[test]
+    fn garbage_then_resync(garbage in proptest::collection::vec(any::<u8>(), 0..600), frame in arb_frame()) {
+        let mut dec = FrameDecoder::new();
+        let _ = decode_all(&mut dec, &garbage);
+        let got = decode_all(&mut dec, &encode(&frame));
+        prop_assert_eq!(got.last(), Some(&Ok(frame)));
+    }
+
+    /// A frame cut short damages only itself.
+    #[test]
+    fn truncated_frame_then_resync(a in arb_frame(), b in arb_frame(), cut in 0.0f64..1.0) {
+        let first = encode(&a);
+        let keep = ((first.len() - 1) as f64 * cut) as usize;
+        let mut bytes = first[..keep].to_vec();
+        bytes.extend_from_slice(&encode(&b));
+        let mut dec = FrameDecoder::new();
+        let got = decode_all(&mut dec, &bytes);
+        prop_assert_eq!(got.last(), Some(&Ok(b)));
+    }
+}
+
+#[test]
+fn oversize_is_reported_once_then_resyncs() {
+    let mut dec = FrameDecoder::new();
+    let junk = vec![0x55u8; MAX_FRAME_LEN * 3];
+    assert_eq!(decode_all(&mut dec, &junk), vec![Err(DecodeError::Oversize)]);
+    let frame = Frame { seq: 1, msg: Message::Ack(9) };
+    assert_eq!(decode_all(&mut dec, &encode(&frame)), vec![Ok(frame)]);
+}
+
+#[test]
+fn short_output_buffer_is_an_error() {
+    let mut out = [0u8; 3];
+    let frame = Frame { seq: 1, msg: Message::Nak(2) };
+    assert_eq!(encode_frame(&frame, &mut out), Err(EncodeError::BufferTooSmall));
+}
+
+#[test]
+fn max_frame_len_is_small() {
+    // Fixed buffers on a 64 KiB MCU: keep frames well under a few hundred bytes.
+    assert!(MAX_FRAME_LEN < 160, "MAX_FRAME_LEN = {MAX_FRAME_LEN}");
+}
