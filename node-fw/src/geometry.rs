@@ -1,0 +1,176 @@
+//! Checked geometric values: grid, points, unit directions, quantised lines.
+//!
+//! Constructors validate against [`crate::limits`] and return an [`Error`]
+//! instead of wrapping; once built, a value is inside the ranges the kernels are
+//! proven for.
+
+use crate::error::{Error, Field};
+use crate::limits::{
+    DIR_FRAC, DIR_ONE, MAX_GRID, MAX_UNIT_ERROR_RAW, ONE, Scalar, Unit, coord_in_range,
+};
+
+/// The scene's grid of unit cubes, `[0, size)` on each axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Grid {
+    size: [u16; 3],
+}
+
+impl Grid {
+    /// A one-cube grid, the placeholder of an unassigned subregion.
+    pub const UNIT: Grid = Grid { size: [1; 3] };
+
+    /// A grid of `size` cubes per axis, each in `1..=256`.
+    pub fn new(size: [u16; 3]) -> Result<Self, Error> {
+        if size.iter().all(|&s| (1..=MAX_GRID).contains(&s)) {
+            Ok(Self { size })
+        } else {
+            Err(Error::OutOfRange(Field::Grid))
+        }
+    }
+
+    /// Cubes per axis.
+    pub fn size(&self) -> [u16; 3] {
+        self.size
+    }
+
+    /// Whether `cell` is a cube of the grid.
+    pub fn contains(&self, cell: [i32; 3]) -> bool {
+        cell.iter()
+            .zip(self.size)
+            .all(|(&c, s)| c >= 0 && c < i32::from(s))
+    }
+
+    /// Whether the raw point lies in the closed grid box.
+    pub fn contains_point(&self, raw: [i32; 3]) -> bool {
+        raw.iter()
+            .zip(self.size)
+            .all(|(&x, s)| x >= 0 && i64::from(x) <= i64::from(s) * ONE)
+    }
+}
+
+/// A point in Q16.16 cubes, within the accepted range of origins.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Point {
+    raw: [i32; 3],
+}
+
+impl Point {
+    /// A point from raw Q16.16 coordinates.
+    pub fn from_bits(raw: [i32; 3]) -> Result<Self, Error> {
+        if raw.iter().all(|&x| coord_in_range(x)) {
+            Ok(Self { raw })
+        } else {
+            Err(Error::OutOfRange(Field::Origin))
+        }
+    }
+
+    /// A point from fixed-point coordinates.
+    pub fn new(p: [Scalar; 3]) -> Result<Self, Error> {
+        Self::from_bits(p.map(Scalar::to_bits))
+    }
+
+    /// Raw Q16.16 coordinates.
+    pub fn bits(&self) -> [i32; 3] {
+        self.raw
+    }
+}
+
+/// A unit direction in Q2.30, `|d.d - 1| <= 2^-20`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Direction {
+    raw: [i32; 3],
+}
+
+impl Direction {
+    /// A direction from raw Q2.30 components, which must form a unit vector.
+    pub fn from_bits(raw: [i32; 3]) -> Result<Self, Error> {
+        let len2: i128 = raw.iter().map(|&d| i128::from(d) * i128::from(d)).sum();
+        let unit = i128::from(DIR_ONE) * i128::from(DIR_ONE);
+        if (len2 - unit).abs() <= MAX_UNIT_ERROR_RAW {
+            Ok(Self { raw })
+        } else {
+            Err(Error::OutOfRange(Field::Direction))
+        }
+    }
+
+    /// A direction from fixed-point components, which must form a unit vector.
+    pub fn new(d: [Unit; 3]) -> Result<Self, Error> {
+        Self::from_bits(d.map(Unit::to_bits))
+    }
+
+    /// The unit direction of `v` (any scale, nonzero), rounded to Q2.30.
+    ///
+    /// Deterministic integer arithmetic: every node computes the same bits.
+    pub fn normalize(v: [i64; 3]) -> Result<Self, Error> {
+        let len2: u128 = v
+            .iter()
+            .map(|&c| c.unsigned_abs() as u128 * c.unsigned_abs() as u128)
+            .sum();
+        let len = len2.isqrt();
+        if len == 0 {
+            return Err(Error::OutOfRange(Field::Direction));
+        }
+        let mut raw = [0i32; 3];
+        for (out, &c) in raw.iter_mut().zip(&v) {
+            let scaled = (i128::from(c) << DIR_FRAC) / len as i128;
+            *out = i32::try_from(scaled).map_err(|_| Error::OutOfRange(Field::Direction))?;
+        }
+        Self::from_bits(raw)
+    }
+
+    /// Raw Q2.30 components.
+    pub fn bits(&self) -> [i32; 3] {
+        self.raw
+    }
+}
+
+/// A quantised ray: origin and unit direction, with `d.d` cached for the sphere test.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Line {
+    origin: [i32; 3],
+    dir: [i32; 3],
+    /// `d.d` in raw units of 2^-60.
+    a: i128,
+}
+
+impl Line {
+    /// The line through `origin` along `dir`.
+    pub fn new(origin: Point, dir: Direction) -> Self {
+        let d = dir.bits();
+        let a = d.iter().map(|&c| i128::from(c) * i128::from(c)).sum();
+        Self {
+            origin: origin.bits(),
+            dir: d,
+            a,
+        }
+    }
+
+    /// Raw Q16.16 origin.
+    pub fn origin(&self) -> [i32; 3] {
+        self.origin
+    }
+
+    /// Raw Q2.30 direction.
+    pub fn dir(&self) -> [i32; 3] {
+        self.dir
+    }
+
+    /// `d.d`, raw in units of 2^-60.
+    pub fn dir_len2(&self) -> i128 {
+        self.a
+    }
+
+    /// The point at parameter `t`, rounded to the nearest Q16.16 value.
+    pub fn at(&self, t: Scalar) -> [i32; 3] {
+        let t = i64::from(t.to_bits());
+        let half = 1i64 << (DIR_FRAC - 1);
+        let mut p = [0i32; 3];
+        for ((out, &o), &d) in p.iter_mut().zip(&self.origin).zip(&self.dir) {
+            let step = (t * i64::from(d) + half) >> DIR_FRAC;
+            // |o| < 2^30 and |t d| < 2^31 within the limits: the sum fits i64, and
+            // saturating to i32 keeps a hit point inside the accepted range.
+            *out = (i64::from(o) + step).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+        }
+        p
+    }
+}

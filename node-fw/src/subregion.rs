@@ -1,0 +1,334 @@
+//! A node's subregion: a box of unit cubes, the spheres that touch it, and the
+//! walk of a ray through it.
+//!
+//! **Registration.** A sphere is listed in every closed unit cube that meets its
+//! surface (exact integer test: the distance from the centre to the cube ranges
+//! over `[d_min, d_max]`, and the surface meets the cube iff
+//! `d_min <= r <= d_max`). Every hit point lies on a surface and in some closed
+//! cube the walk visits, so a ray tests each sphere it can hit, including a
+//! sphere that merely touches a cube face and one that contains the origin. A
+//! sphere that touches several subregions is kept by each of their nodes.
+//!
+//! **Nearest hit.** The walk keeps the best `(t, id)` over all cubes and stops as
+//! soon as `t_best <= t_exit` of the current cube (pbrt's rule): a nearer hit
+//! would have to lie in a cube already visited. A hit whose point lies past the
+//! cube is not rejected, which would lose hits whose rounded `t` falls just past
+//! a boundary.
+//!
+//! **Mailbox.** Each walk gets a fresh stamp; a sphere listed in several cubes is
+//! tested once per walk. Stamps wrap by clearing the mailbox.
+//!
+//! Storage is fixed at compile time: `S` spheres, `R` sphere references over all
+//! cubes, `C` cubes in the box. A sphere that does not fit is handed back.
+
+use crate::cube_box::CubeBox;
+use crate::digital_line::DigitalLine;
+use crate::error::{Error, Field};
+use crate::geometry::{Grid, Line};
+use crate::limits::Scalar;
+use crate::sphere::{Hit, Sphere};
+use heapless::Vec;
+
+/// A sphere the subregion could not take, handed back with the reason.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rejected {
+    /// The sphere.
+    pub sphere: Sphere,
+    /// Why it was not stored.
+    pub error: Error,
+}
+
+/// What a walk looks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Query {
+    /// Sphere the ray leaves from; never hit (no self-intersection of secondary rays).
+    pub ignore: Option<u16>,
+    /// Only hits with `t < t_max` count (shadow rays: the light).
+    pub t_max: Option<Scalar>,
+    /// Stop at any hit (shadow rays) instead of the nearest.
+    pub any_hit: bool,
+}
+
+/// How a walk through the subregion ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome {
+    /// The nearest hit along the ray.
+    Hit(Hit),
+    /// An any-hit query found a hit before `t_max`.
+    Blocked,
+    /// The walk reached `t_max` without a hit.
+    Clear,
+    /// The ray left the grid without a hit.
+    LeftGrid,
+    /// The ray's current cube belongs to another subregion; pass it on.
+    Leave,
+}
+
+/// Work counted during walks, for the cost model and load reports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct TraceStats {
+    /// Unit-cube steps taken.
+    pub cube_steps: u32,
+    /// Ray/sphere tests made.
+    pub sphere_tests: u32,
+}
+
+/// A box of unit cubes `[lo, hi)` with per-cube sphere lists.
+#[derive(Debug, Clone)]
+pub struct Subregion<const S: usize, const R: usize, const C: usize> {
+    grid: Grid,
+    bounds: CubeBox,
+    spheres: Vec<Sphere, S>,
+    mailbox: [u32; S],
+    stamp: u32,
+    /// Start of each cube's list in `refs` (valid while `indexed`).
+    cube_start: [u16; C],
+    refs: [u16; R],
+    ref_total: usize,
+    indexed: bool,
+}
+
+impl<const S: usize, const R: usize, const C: usize> Default for Subregion<S, R, C> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
+    const FITS_U16: () = assert!(
+        S <= u16::MAX as usize && R <= u16::MAX as usize,
+        "S and R index with u16"
+    );
+
+    /// An empty subregion of an empty box; [`Subregion::assign`] gives it one.
+    pub const fn new() -> Self {
+        let () = Self::FITS_U16;
+        Self {
+            grid: Grid::UNIT,
+            bounds: CubeBox {
+                lo: [0; 3],
+                hi: [0; 3],
+            },
+            spheres: Vec::new(),
+            mailbox: [0; S],
+            stamp: 0,
+            cube_start: [0; C],
+            refs: [0; R],
+            ref_total: 0,
+            indexed: false,
+        }
+    }
+
+    /// Takes the box `[lo, hi)` of `grid` and drops every sphere.
+    pub fn assign(&mut self, grid: Grid, bounds: CubeBox) -> Result<(), Error> {
+        let size = grid.size();
+        let inside = (0..3)
+            .all(|a| at(&bounds.lo, a) < at(&bounds.hi, a) && at(&bounds.hi, a) <= at(&size, a));
+        if !inside {
+            return Err(Error::OutOfRange(Field::Subregion));
+        }
+        let cubes = bounds.volume();
+        if cubes > C as u64 {
+            return Err(Error::CubeCapacity {
+                capacity: C as u32,
+                needed: u32::try_from(cubes).unwrap_or(u32::MAX),
+            });
+        }
+        self.grid = grid;
+        self.bounds = bounds;
+        self.clear();
+        Ok(())
+    }
+
+    /// Drops every sphere.
+    pub fn clear(&mut self) {
+        self.spheres.clear();
+        self.ref_total = 0;
+        self.indexed = false;
+    }
+
+    /// The box of cubes.
+    pub fn bounds(&self) -> CubeBox {
+        self.bounds
+    }
+
+    /// The grid the box lies in.
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    /// The spheres kept.
+    pub fn spheres(&self) -> &[Sphere] {
+        &self.spheres
+    }
+
+    /// Sphere references over all cubes.
+    pub fn ref_count(&self) -> usize {
+        self.ref_total
+    }
+
+    /// Whether `cell` lies in the box.
+    pub fn contains(&self, cell: [i32; 3]) -> bool {
+        self.bounds.index(cell).is_some()
+    }
+
+    /// Keeps `sphere` if it touches the box: `Ok(true)` kept, `Ok(false)` not ours.
+    /// A sphere beyond capacity is handed back, never dropped.
+    pub fn insert(&mut self, sphere: Sphere) -> Result<bool, Rejected> {
+        let mut count = 0usize;
+        self.bounds.for_each_surface_cube(&sphere, |_| count += 1);
+        if count == 0 {
+            return Ok(false);
+        }
+        if self.spheres.is_full() {
+            let error = Error::SphereCapacity { capacity: S as u32 };
+            return Err(Rejected { sphere, error });
+        }
+        let total = self.ref_total + count;
+        if total > R {
+            let error = Error::RefCapacity {
+                capacity: R as u32,
+                needed: u32::try_from(total).unwrap_or(u32::MAX),
+            };
+            return Err(Rejected { sphere, error });
+        }
+        self.spheres.push(sphere).map_err(|sphere| Rejected {
+            sphere,
+            error: Error::SphereCapacity { capacity: S as u32 },
+        })?;
+        self.ref_total = total;
+        self.indexed = false;
+        Ok(true)
+    }
+
+    /// Walks `walk` through the box from its current cube, testing spheres, until
+    /// the query is answered, the ray leaves the grid, or it leaves the box.
+    pub fn trace(
+        &mut self,
+        line: &Line,
+        walk: &mut DigitalLine,
+        best: &mut Option<Hit>,
+        query: &Query,
+        stats: &mut TraceStats,
+    ) -> Outcome {
+        self.ensure_index();
+        let stamp = self.next_stamp();
+        loop {
+            let Some(cube) = self.bounds.index(walk.cell()) else {
+                return Outcome::Leave;
+            };
+            if let Some(done) = self.test_cube(cube, line, best, query, stamp, stats) {
+                return done;
+            }
+            if let Some(b) = best.filter(|b| walk.exits_at_or_after(b.t)) {
+                return Outcome::Hit(b);
+            }
+            if query.t_max.is_some_and(|m| walk.exits_at_or_after(m)) {
+                return Outcome::Clear;
+            }
+            walk.step();
+            stats.cube_steps += 1;
+            if !self.grid.contains(walk.cell()) {
+                // A hit's rounded t may fall just past the last cube's exit.
+                return best.map_or(Outcome::LeftGrid, Outcome::Hit);
+            }
+        }
+    }
+
+    /// Tests the spheres of one cube; `Some(Blocked)` ends an any-hit query.
+    fn test_cube(
+        &mut self,
+        cube: usize,
+        line: &Line,
+        best: &mut Option<Hit>,
+        query: &Query,
+        stamp: u32,
+        stats: &mut TraceStats,
+    ) -> Option<Outcome> {
+        let end = if (cube as u64) + 1 < self.bounds.volume() {
+            usize::from(self.cube_start.get(cube + 1).copied().unwrap_or(0))
+        } else {
+            self.ref_total
+        };
+        let start = usize::from(self.cube_start.get(cube).copied().unwrap_or(0));
+        for &index in self.refs.get(start..end).unwrap_or_default() {
+            let index = usize::from(index);
+            let (Some(sphere), Some(seen)) = (self.spheres.get(index), self.mailbox.get_mut(index))
+            else {
+                continue;
+            };
+            if *seen == stamp || query.ignore == Some(sphere.id()) {
+                continue;
+            }
+            *seen = stamp;
+            stats.sphere_tests += 1;
+            let Some(root) = sphere.intersect(line) else {
+                continue;
+            };
+            if query.t_max.is_some_and(|m| root.t >= m) {
+                continue;
+            }
+            if query.any_hit {
+                return Some(Outcome::Blocked);
+            }
+            let hit = Hit {
+                t: root.t,
+                sphere: sphere.id(),
+            };
+            if best.is_none_or(|b| hit < b) {
+                *best = Some(hit);
+            }
+        }
+        None
+    }
+
+    fn next_stamp(&mut self) -> u32 {
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.mailbox = [0; S];
+            self.stamp = 1;
+        }
+        self.stamp
+    }
+
+    /// Builds the per-cube lists by counting sort, once after any change.
+    /// Works in place: no stack copies of the tables.
+    fn ensure_index(&mut self) {
+        if self.indexed {
+            return;
+        }
+        let bounds = self.bounds;
+        let cubes = usize::try_from(bounds.volume()).unwrap_or(0);
+        let start = &mut self.cube_start;
+        start.iter_mut().take(cubes).for_each(|c| *c = 0);
+        for s in &self.spheres {
+            bounds.for_each_surface_cube(s, |k| bump(start, k, 1));
+        }
+        // Prefix sums give each cube's end; filling backwards turns ends into starts.
+        let mut running = 0u16;
+        for c in start.iter_mut().take(cubes) {
+            running = running.wrapping_add(*c);
+            *c = running;
+        }
+        let refs = &mut self.refs;
+        for (i, s) in self.spheres.iter().enumerate() {
+            bounds.for_each_surface_cube(s, |k| {
+                bump(start, k, -1);
+                if let Some(slot) = start.get(k).and_then(|&p| refs.get_mut(usize::from(p))) {
+                    *slot = i as u16;
+                }
+            });
+        }
+        self.indexed = true;
+    }
+}
+
+fn at(a: &[u16; 3], i: usize) -> u16 {
+    a.get(i).copied().unwrap_or(0)
+}
+
+fn bump<const C: usize>(counts: &mut [u16; C], k: usize, delta: i16) {
+    if let Some(c) = counts.get_mut(k) {
+        *c = c.wrapping_add_signed(delta);
+    }
+}
