@@ -20,6 +20,9 @@ pub const MAX_PAYLOAD_LEN: usize = Frame::POSTCARD_MAX_SIZE + CRC_LEN;
 /// Largest encoded frame on the wire, both zero delimiters included.
 pub const MAX_FRAME_LEN: usize = cobs::max_encoding_length(MAX_PAYLOAD_LEN) + 2;
 
+// Fixed buffers on a 64 KiB MCU: keep frames small.
+const _: () = assert!(MAX_FRAME_LEN <= 160);
+
 /// Why a frame could not be encoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum EncodeError {

@@ -10,7 +10,10 @@
 //! encoded frame ([`MAX_FRAME_LEN`]) is known at compile time, so every buffer is
 //! a fixed array and nothing allocates.
 #![no_std]
-#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+#![cfg_attr(
+    not(test),
+    deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
+)]
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 pub mod frame;

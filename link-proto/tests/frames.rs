@@ -14,37 +14,58 @@ fn encode(frame: &Frame) -> Vec<u8> {
 }
 
 fn arb_material() -> impl Strategy<Value = MaterialMsg> {
-    (any::<[u16; 3]>(), any::<u16>(), any::<u16>(), any::<u16>(), any::<u8>(), any::<u16>()).prop_map(
-        |(color, ambient, diffuse, specular, shininess, reflect)| MaterialMsg {
-            color,
-            ambient,
-            diffuse,
-            specular,
-            shininess,
-            reflect,
-        },
+    (
+        any::<[u16; 3]>(),
+        any::<u16>(),
+        any::<u16>(),
+        any::<u16>(),
+        any::<u8>(),
+        any::<u16>(),
     )
+        .prop_map(
+            |(color, ambient, diffuse, specular, shininess, reflect)| MaterialMsg {
+                color,
+                ambient,
+                diffuse,
+                specular,
+                shininess,
+                reflect,
+            },
+        )
 }
 
 fn arb_ray() -> impl Strategy<Value = RayMsg> {
     (
-        (any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[u16; 3]>(), any::<u32>()),
+        (
+            any::<[i32; 3]>(),
+            any::<[i32; 3]>(),
+            any::<[u16; 3]>(),
+            any::<u32>(),
+        ),
         (any::<[u32; 3]>(), any::<u64>(), 0u8..3, any::<u8>()),
-        (any::<Option<u16>>(), any::<Option<(i32, u16)>>(), any::<Option<i32>>()),
+        (
+            any::<Option<u16>>(),
+            any::<Option<(i32, u16)>>(),
+            any::<Option<i32>>(),
+        ),
     )
-        .prop_map(|((origin, dir, cell, pixel), (weight, credit, kind, depth), (ignore, best, t_max))| RayMsg {
-            origin,
-            dir,
-            cell,
-            pixel,
-            weight,
-            credit,
-            kind: [RayKind::Primary, RayKind::Reflected, RayKind::Shadow][kind as usize],
-            depth,
-            ignore,
-            best: best.map(|(t, sphere)| HitMsg { t, sphere }),
-            t_max,
-        })
+        .prop_map(
+            |((origin, dir, cell, pixel), (weight, credit, kind, depth), (ignore, best, t_max))| {
+                RayMsg {
+                    origin,
+                    dir,
+                    cell,
+                    pixel,
+                    weight,
+                    credit,
+                    kind: [RayKind::Primary, RayKind::Reflected, RayKind::Shadow][kind as usize],
+                    depth,
+                    ignore,
+                    best: best.map(|(t, sphere)| HitMsg { t, sphere }),
+                    t_max,
+                }
+            },
+        )
 }
 
 fn arb_error_code() -> impl Strategy<Value = ErrorCode> {
@@ -63,65 +84,135 @@ fn arb_error_code() -> impl Strategy<Value = ErrorCode> {
 
 /// Every variant of [`Message`], with arbitrary field values.
 fn arb_message() -> impl Strategy<Value = Message> {
-    let camera = (any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[i32; 3]>())
-        .prop_map(|(eye, corner, du, dv)| CameraMsg { eye, corner, du, dv });
+    let camera = (
+        any::<[i32; 3]>(),
+        any::<[i32; 3]>(),
+        any::<[i32; 3]>(),
+        any::<[i32; 3]>(),
+    )
+        .prop_map(|(eye, corner, du, dv)| CameraMsg {
+            eye,
+            corner,
+            du,
+            dv,
+        });
     prop_oneof![
-        (any::<u16>(), any::<u16>(), any::<(u32, u32, u32, u16)>()).prop_map(|(version, node, c)| {
-            Message::Hello(Hello {
-                version,
-                node,
-                capacity: Capacity { spheres: c.0, refs: c.1, cubes: c.2, rays: c.3 },
+        (any::<u16>(), any::<u16>(), any::<(u32, u32, u32, u16)>()).prop_map(
+            |(version, node, c)| {
+                Message::Hello(Hello {
+                    version,
+                    node,
+                    capacity: Capacity {
+                        spheres: c.0,
+                        refs: c.1,
+                        cubes: c.2,
+                        rays: c.3,
+                    },
+                })
+            }
+        ),
+        (
+            any::<[u16; 3]>(),
+            any::<[u16; 3]>(),
+            any::<[u16; 3]>(),
+            any::<u8>()
+        )
+            .prop_map(
+                |(grid, ambient, background, max_depth)| Message::SceneBegin(SceneHeader {
+                    grid,
+                    ambient,
+                    background,
+                    max_depth
+                })
+            ),
+        (
+            any::<u16>(),
+            any::<[i32; 3]>(),
+            any::<i32>(),
+            arb_material()
+        )
+            .prop_map(|(id, center, radius, material)| {
+                Message::Sphere(SphereMsg {
+                    id,
+                    center,
+                    radius,
+                    material,
+                })
+            }),
+        (any::<u8>(), any::<[i32; 3]>(), any::<[u16; 3]>()).prop_map(|(id, position, color)| {
+            Message::Light(LightMsg {
+                id,
+                position,
+                color,
             })
         }),
-        (any::<[u16; 3]>(), any::<[u16; 3]>(), any::<[u16; 3]>(), any::<u8>()).prop_map(
-            |(grid, ambient, background, max_depth)| Message::SceneBegin(SceneHeader {
-                grid,
-                ambient,
-                background,
-                max_depth
-            })
-        ),
-        (any::<u16>(), any::<[i32; 3]>(), any::<i32>(), arb_material()).prop_map(|(id, center, radius, material)| {
-            Message::Sphere(SphereMsg { id, center, radius, material })
-        }),
-        (any::<u8>(), any::<[i32; 3]>(), any::<[u16; 3]>())
-            .prop_map(|(id, position, color)| Message::Light(LightMsg { id, position, color })),
-        (any::<u32>(), any::<u8>()).prop_map(|(spheres, lights)| Message::SceneEnd(SceneEnd { spheres, lights })),
-        (any::<[[u16; 3]; 4]>(), any::<u8>()).prop_map(|(a, driving_axis)| Message::Assign(Assign {
-            array: a[0],
-            coord: a[1],
-            lo: a[2],
-            hi: a[3],
-            driving_axis
-        })),
-        (any::<u32>(), any::<[u16; 2]>(), camera, any::<bool>(), any::<[u16; 4]>(), any::<u64>()).prop_map(
-            |(frame, size, camera, eye, tile, credit)| Message::RenderStart(RenderStart {
-                frame,
-                size,
-                camera,
-                initial: if eye { InitialRays::EyeNode } else { InitialRays::Parallel },
-                tile,
-                credit,
-            })
-        ),
+        (any::<u32>(), any::<u8>())
+            .prop_map(|(spheres, lights)| Message::SceneEnd(SceneEnd { spheres, lights })),
+        (any::<[[u16; 3]; 4]>(), any::<u8>()).prop_map(|(a, driving_axis)| Message::Assign(
+            Assign {
+                array: a[0],
+                coord: a[1],
+                lo: a[2],
+                hi: a[3],
+                driving_axis
+            }
+        )),
+        (
+            any::<u32>(),
+            any::<[u16; 2]>(),
+            camera,
+            any::<bool>(),
+            any::<[u16; 4]>(),
+            any::<u64>()
+        )
+            .prop_map(
+                |(frame, size, camera, eye, tile, credit)| Message::RenderStart(RenderStart {
+                    frame,
+                    size,
+                    camera,
+                    initial: if eye {
+                        InitialRays::EyeNode
+                    } else {
+                        InitialRays::Parallel
+                    },
+                    tile,
+                    credit,
+                })
+            ),
         arb_ray().prop_map(Message::Ray),
-        (any::<u32>(), any::<[u32; 3]>(), any::<u64>(), any::<u8>())
-            .prop_map(|(pixel, rgb, credit, spawned)| Message::Retire(Retire { pixel, rgb, credit, spawned })),
-        (any::<(u16, u32, u64, u64)>(), any::<(u32, u32, u32)>()).prop_map(|(a, b)| Message::Load(LoadReport {
-            node: a.0,
-            interval: a.1,
-            running: a.2,
-            waiting: a.3,
-            rays: b.0,
-            sphere_tests: b.1,
-            cube_steps: b.2,
-        })),
-        (any::<u32>(), any::<u16>()).prop_map(|(interval, boundary)| Message::SlideOffer(SlideOffer { interval, boundary })),
+        (any::<u32>(), any::<[u32; 3]>(), any::<u64>(), any::<u8>()).prop_map(
+            |(pixel, rgb, credit, spawned)| Message::Retire(Retire {
+                pixel,
+                rgb,
+                credit,
+                spawned
+            })
+        ),
+        (any::<(u16, u32, u64, u64)>(), any::<(u32, u32, u32)>()).prop_map(|(a, b)| Message::Load(
+            LoadReport {
+                node: a.0,
+                interval: a.1,
+                running: a.2,
+                waiting: a.3,
+                rays: b.0,
+                sphere_tests: b.1,
+                cube_steps: b.2,
+            }
+        )),
+        (any::<u32>(), any::<u16>()).prop_map(|(interval, boundary)| Message::SlideOffer(
+            SlideOffer { interval, boundary }
+        )),
         (any::<u16>(), 0u8..4).prop_map(|(boundary, r)| Message::SlideReply(SlideReply {
             boundary,
-            refused: [None, Some(SlideRefusal::Capacity), Some(SlideRefusal::Empty), Some(SlideRefusal::Busy)][r as usize],
+            refused: [
+                None,
+                Some(SlideRefusal::Capacity),
+                Some(SlideRefusal::Empty),
+                Some(SlideRefusal::Busy)
+            ][r as usize],
         })),
-        (any::<u16>(), any::<u32>()).prop_map(|(boundary, spheres)| Message::SlideDone(SlideDone { boundary, spheres })),
+        (any::<u16>(), any::<u32>())
+            .prop_map(|(boundary, spheres)| Message::SlideDone(SlideDone { boundary, spheres })),
         any::<u32>().prop_map(|frame| Message::Finish(Finish { frame })),
         (any::<u16>(), arb_error_code(), any::<u32>(), any::<u32>())
             .prop_map(|(node, code, a, b)| Message::Error(ErrorReport { node, code, a, b })),
@@ -156,7 +247,7 @@ proptest! {
         for pos in 1..clean.len() - 1 {
             let mut bytes = clean.clone();
             // Replace with a different value; a zero splits the frame in two.
-            bytes[pos] = bytes[pos] ^ flip.wrapping_add(salt).max(1);
+            bytes[pos] ^= flip.wrapping_add(salt).max(1);
             bytes.extend_from_slice(&clean);
             let mut dec = FrameDecoder::new();
             let got = decode_all(&mut dec, &bytes);
@@ -194,20 +285,58 @@ proptest! {
 fn oversize_is_reported_once_then_resyncs() {
     let mut dec = FrameDecoder::new();
     let junk = vec![0x55u8; MAX_FRAME_LEN * 3];
-    assert_eq!(decode_all(&mut dec, &junk), vec![Err(DecodeError::Oversize)]);
-    let frame = Frame { seq: 1, msg: Message::Ack(9) };
+    assert_eq!(
+        decode_all(&mut dec, &junk),
+        vec![Err(DecodeError::Oversize)]
+    );
+    let frame = Frame {
+        seq: 1,
+        msg: Message::Ack(9),
+    };
     assert_eq!(decode_all(&mut dec, &encode(&frame)), vec![Ok(frame)]);
 }
 
 #[test]
 fn short_output_buffer_is_an_error() {
     let mut out = [0u8; 3];
-    let frame = Frame { seq: 1, msg: Message::Nak(2) };
-    assert_eq!(encode_frame(&frame, &mut out), Err(EncodeError::BufferTooSmall));
+    let frame = Frame {
+        seq: 1,
+        msg: Message::Nak(2),
+    };
+    assert_eq!(
+        encode_frame(&frame, &mut out),
+        Err(EncodeError::BufferTooSmall)
+    );
 }
 
 #[test]
-fn max_frame_len_is_small() {
-    // Fixed buffers on a 64 KiB MCU: keep frames well under a few hundred bytes.
-    assert!(MAX_FRAME_LEN < 160, "MAX_FRAME_LEN = {MAX_FRAME_LEN}");
+fn largest_message_fits_the_frame_buffer() {
+    // A ray with every field at its widest varint encoding.
+    let ray = RayMsg {
+        origin: [i32::MIN; 3],
+        dir: [i32::MIN; 3],
+        cell: [u16::MAX; 3],
+        pixel: u32::MAX,
+        weight: [u32::MAX; 3],
+        credit: u64::MAX,
+        kind: RayKind::Shadow,
+        depth: u8::MAX,
+        ignore: Some(u16::MAX),
+        best: Some(HitMsg {
+            t: i32::MIN,
+            sphere: u16::MAX,
+        }),
+        t_max: Some(i32::MIN),
+    };
+    let frame = Frame {
+        seq: u16::MAX,
+        msg: Message::Ray(ray),
+    };
+    let bytes = encode(&frame);
+    assert!(bytes.len() <= MAX_FRAME_LEN);
+    println!(
+        "largest ray frame {} bytes, MAX_FRAME_LEN {}",
+        bytes.len(),
+        MAX_FRAME_LEN
+    );
 }

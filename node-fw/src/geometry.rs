@@ -102,17 +102,26 @@ impl Direction {
     ///
     /// Deterministic integer arithmetic: every node computes the same bits.
     pub fn normalize(v: [i64; 3]) -> Result<Self, Error> {
-        let len2: u128 = v
-            .iter()
-            .map(|&c| c.unsigned_abs() as u128 * c.unsigned_abs() as u128)
-            .sum();
-        let len = len2.isqrt();
-        if len == 0 {
+        let largest = v.iter().map(|c| c.unsigned_abs()).max().unwrap_or(0);
+        if largest == 0 {
             return Err(Error::OutOfRange(Field::Direction));
         }
+        // Rescale so the largest component lies in [2^40, 2^41): the square root
+        // is then exact to 2^-41 whatever the input's scale.
+        let top = 63 - largest.leading_zeros() as i32;
+        let v = v.map(|c| {
+            let c = i128::from(c);
+            if top < 40 {
+                c << (40 - top)
+            } else {
+                c >> (top - 40)
+            }
+        });
+        let len2: i128 = v.iter().map(|&c| c * c).sum();
+        let len = len2.isqrt();
         let mut raw = [0i32; 3];
         for (out, &c) in raw.iter_mut().zip(&v) {
-            let scaled = (i128::from(c) << DIR_FRAC) / len as i128;
+            let scaled = (c << DIR_FRAC) / len;
             *out = i32::try_from(scaled).map_err(|_| Error::OutOfRange(Field::Direction))?;
         }
         Self::from_bits(raw)

@@ -332,3 +332,47 @@ fn bump<const C: usize>(counts: &mut [u16; C], k: usize, delta: i16) {
         *c = c.wrapping_add_signed(delta);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{Direction, Point};
+    use crate::sphere::Material;
+
+    #[test]
+    fn mailbox_stamp_wrap_clears_the_mailbox() {
+        let grid = Grid::new([4; 3]).unwrap();
+        let mut region: Subregion<4, 64, 64> = Subregion::new();
+        region
+            .assign(
+                grid,
+                CubeBox {
+                    lo: [0; 3],
+                    hi: [4; 3],
+                },
+            )
+            .unwrap();
+        let center = Point::from_bits([2 << 16; 3]).unwrap();
+        let sphere =
+            Sphere::new(9, center, Scalar::from_num(0.5), Material::default(), &grid).unwrap();
+        region.insert(sphere).unwrap();
+        let origin = Point::from_bits([0, 2 << 16, 2 << 16]).unwrap();
+        let line = Line::new(origin, Direction::from_bits([1 << 30, 0, 0]).unwrap());
+        for start in [u32::MAX - 2, u32::MAX - 1, u32::MAX] {
+            region.stamp = start;
+            // A stale entry equal to the stamp after the wrap must not hide the sphere.
+            region.mailbox = [1; 4];
+            for _ in 0..3 {
+                let mut walk = DigitalLine::enter(&line, &grid).unwrap();
+                let (mut best, mut stats) = (None, TraceStats::default());
+                let out = region.trace(&line, &mut walk, &mut best, &Query::default(), &mut stats);
+                assert!(
+                    matches!(out, Outcome::Hit(h) if h.sphere == 9),
+                    "stamp {}: {out:?}",
+                    region.stamp
+                );
+                assert_eq!(stats.sphere_tests, 1);
+            }
+        }
+    }
+}
