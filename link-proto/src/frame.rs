@@ -48,9 +48,7 @@ pub enum DecodeError {
 /// Encodes `frame` into `out`, returning the number of bytes written.
 pub fn encode_frame(frame: &Frame, out: &mut [u8]) -> Result<usize, EncodeError> {
     let mut raw = [0u8; MAX_PAYLOAD_LEN];
-    let body_len = postcard::to_slice(frame, &mut raw)
-        .map_err(|_| EncodeError::BufferTooSmall)?
-        .len();
+    let body_len = postcard::to_slice(frame, &mut raw).map_err(|_| EncodeError::BufferTooSmall)?.len();
     let crc = CRC.checksum(raw.get(..body_len).unwrap_or_default());
     let payload_len = body_len + CRC_LEN;
     raw.get_mut(body_len..payload_len)
@@ -83,11 +81,7 @@ impl Default for FrameDecoder {
 impl FrameDecoder {
     /// An empty decoder.
     pub const fn new() -> Self {
-        Self {
-            buf: [0; MAX_FRAME_LEN],
-            len: 0,
-            discarding: false,
-        }
+        Self { buf: [0; MAX_FRAME_LEN], len: 0, discarding: false }
     }
 
     /// Feeds one byte. Returns a result each time a delimiter closes a non-empty frame.

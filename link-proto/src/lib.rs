@@ -10,18 +10,13 @@
 //! encoded frame ([`MAX_FRAME_LEN`]) is known at compile time, so every buffer is
 //! a fixed array and nothing allocates.
 #![no_std]
-#![cfg_attr(
-    not(test),
-    deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
-)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 pub mod frame;
 pub mod message;
 
-pub use frame::{
-    DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_PAYLOAD_LEN, encode_frame,
-};
+pub use frame::{DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_PAYLOAD_LEN, encode_frame};
 pub use message::*;
 
 /// Version of the wire protocol; nodes and host exchange it in [`Hello`].

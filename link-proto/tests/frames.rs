@@ -14,56 +14,37 @@ fn encode(frame: &Frame) -> Vec<u8> {
 }
 
 fn arb_material() -> impl Strategy<Value = MaterialMsg> {
-    (
-        any::<[u16; 3]>(),
-        any::<u16>(),
-        any::<u16>(),
-        any::<u16>(),
-        any::<u8>(),
-        any::<u16>(),
+    (any::<[u16; 3]>(), any::<u16>(), any::<u16>(), any::<u16>(), any::<u8>(), any::<u16>()).prop_map(
+        |(color, ambient, diffuse, specular, shininess, reflect)| MaterialMsg {
+            color,
+            ambient,
+            diffuse,
+            specular,
+            shininess,
+            reflect,
+        },
     )
-        .prop_map(
-            |(color, ambient, diffuse, specular, shininess, reflect)| MaterialMsg {
-                color,
-                ambient,
-                diffuse,
-                specular,
-                shininess,
-                reflect,
-            },
-        )
 }
 
 fn arb_ray() -> impl Strategy<Value = RayMsg> {
     (
-        (
-            any::<[i32; 3]>(),
-            any::<[i32; 3]>(),
-            any::<[u16; 3]>(),
-            any::<u32>(),
-        ),
+        (any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[u16; 3]>(), any::<u32>()),
         (any::<[u32; 3]>(), any::<u64>(), 0u8..3, any::<u8>()),
-        (
-            any::<Option<u16>>(),
-            any::<Option<(i32, u16)>>(),
-            any::<Option<i32>>(),
-        ),
+        (any::<Option<u16>>(), any::<Option<(i32, u16)>>(), any::<Option<i32>>()),
     )
         .prop_map(
-            |((origin, dir, cell, pixel), (weight, credit, kind, depth), (ignore, best, t_max))| {
-                RayMsg {
-                    origin,
-                    dir,
-                    cell,
-                    pixel,
-                    weight,
-                    credit,
-                    kind: [RayKind::Primary, RayKind::Reflected, RayKind::Shadow][kind as usize],
-                    depth,
-                    ignore,
-                    best: best.map(|(t, sphere)| HitMsg { t, sphere }),
-                    t_max,
-                }
+            |((origin, dir, cell, pixel), (weight, credit, kind, depth), (ignore, best, t_max))| RayMsg {
+                origin,
+                dir,
+                cell,
+                pixel,
+                weight,
+                credit,
+                kind: [RayKind::Primary, RayKind::Reflected, RayKind::Shadow][kind as usize],
+                depth,
+                ignore,
+                best: best.map(|(t, sphere)| HitMsg { t, sphere }),
+                t_max,
             },
         )
 }
@@ -84,109 +65,51 @@ fn arb_error_code() -> impl Strategy<Value = ErrorCode> {
 
 /// Every variant of [`Message`], with arbitrary field values.
 fn arb_message() -> impl Strategy<Value = Message> {
-    let camera = (
-        any::<[i32; 3]>(),
-        any::<[i32; 3]>(),
-        any::<[i32; 3]>(),
-        any::<[i32; 3]>(),
-    )
-        .prop_map(|(eye, corner, du, dv)| CameraMsg {
-            eye,
-            corner,
-            du,
-            dv,
-        });
+    let camera = (any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[i32; 3]>())
+        .prop_map(|(eye, corner, du, dv)| CameraMsg { eye, corner, du, dv });
     prop_oneof![
-        (any::<u16>(), any::<u16>(), any::<(u32, u32, u32, u16)>()).prop_map(
-            |(version, node, c)| {
-                Message::Hello(Hello {
-                    version,
-                    node,
-                    capacity: Capacity {
-                        spheres: c.0,
-                        refs: c.1,
-                        cubes: c.2,
-                        rays: c.3,
-                    },
-                })
-            }
-        ),
-        (
-            any::<[u16; 3]>(),
-            any::<[u16; 3]>(),
-            any::<[u16; 3]>(),
-            any::<u8>()
-        )
-            .prop_map(
-                |(grid, ambient, background, max_depth)| Message::SceneBegin(SceneHeader {
-                    grid,
-                    ambient,
-                    background,
-                    max_depth
-                })
-            ),
-        (
-            any::<u16>(),
-            any::<[i32; 3]>(),
-            any::<i32>(),
-            arb_material()
-        )
-            .prop_map(|(id, center, radius, material)| {
-                Message::Sphere(SphereMsg {
-                    id,
-                    center,
-                    radius,
-                    material,
-                })
-            }),
-        (any::<u8>(), any::<[i32; 3]>(), any::<[u16; 3]>()).prop_map(|(id, position, color)| {
-            Message::Light(LightMsg {
-                id,
-                position,
-                color,
+        (any::<u16>(), any::<u16>(), any::<(u32, u32, u32, u16)>()).prop_map(|(version, node, c)| {
+            Message::Hello(Hello {
+                version,
+                node,
+                capacity: Capacity { spheres: c.0, refs: c.1, cubes: c.2, rays: c.3 },
             })
         }),
+        (any::<[u16; 3]>(), any::<[u16; 3]>(), any::<[u16; 3]>(), any::<u8>()).prop_map(
+            |(grid, ambient, background, max_depth)| Message::SceneBegin(SceneHeader {
+                grid,
+                ambient,
+                background,
+                max_depth
+            })
+        ),
+        (any::<u16>(), any::<[i32; 3]>(), any::<i32>(), arb_material()).prop_map(
+            |(id, center, radius, material)| { Message::Sphere(SphereMsg { id, center, radius, material }) }
+        ),
+        (any::<u8>(), any::<[i32; 3]>(), any::<[u16; 3]>())
+            .prop_map(|(id, position, color)| { Message::Light(LightMsg { id, position, color }) }),
         (any::<u32>(), any::<u8>())
             .prop_map(|(spheres, lights)| Message::SceneEnd(SceneEnd { spheres, lights })),
-        (any::<[[u16; 3]; 4]>(), any::<u8>()).prop_map(|(a, driving_axis)| Message::Assign(
-            Assign {
-                array: a[0],
-                coord: a[1],
-                lo: a[2],
-                hi: a[3],
-                driving_axis
-            }
-        )),
-        (
-            any::<u32>(),
-            any::<[u16; 2]>(),
-            camera,
-            any::<bool>(),
-            any::<[u16; 4]>(),
-            any::<u64>()
-        )
-            .prop_map(
-                |(frame, size, camera, eye, tile, credit)| Message::RenderStart(RenderStart {
-                    frame,
-                    size,
-                    camera,
-                    initial: if eye {
-                        InitialRays::EyeNode
-                    } else {
-                        InitialRays::Parallel
-                    },
-                    tile,
-                    credit,
-                })
-            ),
+        (any::<[[u16; 3]; 4]>(), any::<u8>()).prop_map(|(a, driving_axis)| Message::Assign(Assign {
+            array: a[0],
+            coord: a[1],
+            lo: a[2],
+            hi: a[3],
+            driving_axis
+        })),
+        (any::<u32>(), any::<[u16; 2]>(), camera, any::<bool>(), any::<[u16; 4]>(), any::<u64>()).prop_map(
+            |(frame, size, camera, eye, tile, credit)| Message::RenderStart(RenderStart {
+                frame,
+                size,
+                camera,
+                initial: if eye { InitialRays::EyeNode } else { InitialRays::Parallel },
+                tile,
+                credit,
+            })
+        ),
         arb_ray().prop_map(Message::Ray),
         (any::<u32>(), any::<[u32; 3]>(), any::<u64>(), any::<u8>()).prop_map(
-            |(pixel, rgb, credit, spawned)| Message::Retire(Retire {
-                pixel,
-                rgb,
-                credit,
-                spawned
-            })
+            |(pixel, rgb, credit, spawned)| Message::Retire(Retire { pixel, rgb, credit, spawned })
         ),
         (any::<(u16, u32, u64, u64)>(), any::<(u32, u32, u32)>()).prop_map(|(a, b)| Message::Load(
             LoadReport {
@@ -199,9 +122,8 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 cube_steps: b.2,
             }
         )),
-        (any::<u32>(), any::<u16>()).prop_map(|(interval, boundary)| Message::SlideOffer(
-            SlideOffer { interval, boundary }
-        )),
+        (any::<u32>(), any::<u16>())
+            .prop_map(|(interval, boundary)| Message::SlideOffer(SlideOffer { interval, boundary })),
         (any::<u16>(), 0u8..4).prop_map(|(boundary, r)| Message::SlideReply(SlideReply {
             boundary,
             refused: [
@@ -285,28 +207,16 @@ proptest! {
 fn oversize_is_reported_once_then_resyncs() {
     let mut dec = FrameDecoder::new();
     let junk = vec![0x55u8; MAX_FRAME_LEN * 3];
-    assert_eq!(
-        decode_all(&mut dec, &junk),
-        vec![Err(DecodeError::Oversize)]
-    );
-    let frame = Frame {
-        seq: 1,
-        msg: Message::Ack(9),
-    };
+    assert_eq!(decode_all(&mut dec, &junk), vec![Err(DecodeError::Oversize)]);
+    let frame = Frame { seq: 1, msg: Message::Ack(9) };
     assert_eq!(decode_all(&mut dec, &encode(&frame)), vec![Ok(frame)]);
 }
 
 #[test]
 fn short_output_buffer_is_an_error() {
     let mut out = [0u8; 3];
-    let frame = Frame {
-        seq: 1,
-        msg: Message::Nak(2),
-    };
-    assert_eq!(
-        encode_frame(&frame, &mut out),
-        Err(EncodeError::BufferTooSmall)
-    );
+    let frame = Frame { seq: 1, msg: Message::Nak(2) };
+    assert_eq!(encode_frame(&frame, &mut out), Err(EncodeError::BufferTooSmall));
 }
 
 #[test]
@@ -322,21 +232,11 @@ fn largest_message_fits_the_frame_buffer() {
         kind: RayKind::Shadow,
         depth: u8::MAX,
         ignore: Some(u16::MAX),
-        best: Some(HitMsg {
-            t: i32::MIN,
-            sphere: u16::MAX,
-        }),
+        best: Some(HitMsg { t: i32::MIN, sphere: u16::MAX }),
         t_max: Some(i32::MIN),
     };
-    let frame = Frame {
-        seq: u16::MAX,
-        msg: Message::Ray(ray),
-    };
+    let frame = Frame { seq: u16::MAX, msg: Message::Ray(ray) };
     let bytes = encode(&frame);
     assert!(bytes.len() <= MAX_FRAME_LEN);
-    println!(
-        "largest ray frame {} bytes, MAX_FRAME_LEN {}",
-        bytes.len(),
-        MAX_FRAME_LEN
-    );
+    println!("largest ray frame {} bytes, MAX_FRAME_LEN {}", bytes.len(), MAX_FRAME_LEN);
 }

@@ -15,9 +15,7 @@ pub struct CubeBox {
 impl CubeBox {
     /// Number of cubes (0 for an empty box).
     pub fn volume(&self) -> u64 {
-        (0..3)
-            .map(|a| u64::from(at(&self.hi, a).saturating_sub(at(&self.lo, a))))
-            .product()
+        (0..3).map(|a| u64::from(at(&self.hi, a).saturating_sub(at(&self.lo, a)))).product()
     }
 
     /// Index of `cell` within the box, or `None` outside it.

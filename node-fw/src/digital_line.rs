@@ -88,21 +88,12 @@ impl DigitalLine {
     pub fn resume(line: &Line, cell: [i32; 3]) -> Result<Self, Error> {
         let o = line.origin();
         let d = line.dir();
-        let mut walk = DigitalLine {
-            cell,
-            step: [0; 3],
-            abs_d: [0; 3],
-            n: [0; 3],
-            cross: [[0; 3]; 3],
-            next: 0,
-        };
+        let mut walk =
+            DigitalLine { cell, step: [0; 3], abs_d: [0; 3], n: [0; 3], cross: [[0; 3]; 3], next: 0 };
         let mut entry = Ratio { num: 0, den: 1 };
         for axis in 0..3 {
-            let (oi, di, ci) = (
-                i64::from(get32(&o, axis)),
-                i64::from(get32(&d, axis)),
-                i64::from(get32(&cell, axis)),
-            );
+            let (oi, di, ci) =
+                (i64::from(get32(&o, axis)), i64::from(get32(&d, axis)), i64::from(get32(&cell, axis)));
             let lower = ci * ONE;
             let n = match di.signum() {
                 1 => lower + ONE - oi,
@@ -114,10 +105,7 @@ impl DigitalLine {
                 if !(0..=MAX_BOUNDARY_RAW).contains(&n) {
                     return Err(Error::OutOfRange(Field::Cell));
                 }
-                let enter_here = Ratio {
-                    num: n - ONE,
-                    den: di.abs(),
-                };
+                let enter_here = Ratio { num: n - ONE, den: di.abs() };
                 if entry.lt(enter_here) {
                     entry = enter_here;
                 }
@@ -134,14 +122,9 @@ impl DigitalLine {
                 }
             }
         }
-        walk.next = walk
-            .first_axis()
-            .ok_or(Error::OutOfRange(Field::Direction))?;
+        walk.next = walk.first_axis().ok_or(Error::OutOfRange(Field::Direction))?;
         // The cube must be entered no later than it is left.
-        let exit = Ratio {
-            num: get(&walk.n, walk.next),
-            den: get(&walk.abs_d, walk.next),
-        };
+        let exit = Ratio { num: get(&walk.n, walk.next), den: get(&walk.abs_d, walk.next) };
         if exit.lt(entry) {
             return Err(Error::OutOfRange(Field::Cell));
         }
@@ -161,11 +144,9 @@ impl DigitalLine {
     /// Moves to the next cube; returns the axis stepped along.
     pub fn step(&mut self) -> usize {
         let axis = self.next;
-        if let (Some(c), Some(s), Some(n)) = (
-            self.cell.get_mut(axis),
-            self.step.get(axis),
-            self.n.get_mut(axis),
-        ) {
+        if let (Some(c), Some(s), Some(n)) =
+            (self.cell.get_mut(axis), self.step.get(axis), self.n.get_mut(axis))
+        {
             *c += *s;
             *n += ONE;
         }

@@ -55,9 +55,7 @@ impl Error {
     pub fn report(self, node: u16) -> ErrorReport {
         let (code, a, b) = match self {
             Error::OutOfRange(field) => (ErrorCode::OutOfRange, field as u32, 0),
-            Error::SphereCapacity { capacity } => {
-                (ErrorCode::SphereCapacity, capacity, capacity + 1)
-            }
+            Error::SphereCapacity { capacity } => (ErrorCode::SphereCapacity, capacity, capacity + 1),
             Error::RefCapacity { capacity, needed } => (ErrorCode::RefCapacity, capacity, needed),
             Error::CubeCapacity { capacity, needed } => (ErrorCode::CubeCapacity, capacity, needed),
         };

@@ -5,9 +5,7 @@
 //! proven for.
 
 use crate::error::{Error, Field};
-use crate::limits::{
-    DIR_FRAC, DIR_ONE, MAX_GRID, MAX_UNIT_ERROR_RAW, ONE, Scalar, Unit, coord_in_range,
-};
+use crate::limits::{DIR_FRAC, DIR_ONE, MAX_GRID, MAX_UNIT_ERROR_RAW, ONE, Scalar, Unit, coord_in_range};
 
 /// The scene's grid of unit cubes, `[0, size)` on each axis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -35,16 +33,12 @@ impl Grid {
 
     /// Whether `cell` is a cube of the grid.
     pub fn contains(&self, cell: [i32; 3]) -> bool {
-        cell.iter()
-            .zip(self.size)
-            .all(|(&c, s)| c >= 0 && c < i32::from(s))
+        cell.iter().zip(self.size).all(|(&c, s)| c >= 0 && c < i32::from(s))
     }
 
     /// Whether the raw point lies in the closed grid box.
     pub fn contains_point(&self, raw: [i32; 3]) -> bool {
-        raw.iter()
-            .zip(self.size)
-            .all(|(&x, s)| x >= 0 && i64::from(x) <= i64::from(s) * ONE)
+        raw.iter().zip(self.size).all(|(&x, s)| x >= 0 && i64::from(x) <= i64::from(s) * ONE)
     }
 }
 
@@ -111,11 +105,7 @@ impl Direction {
         let top = 63 - largest.leading_zeros() as i32;
         let v = v.map(|c| {
             let c = i128::from(c);
-            if top < 40 {
-                c << (40 - top)
-            } else {
-                c >> (top - 40)
-            }
+            if top < 40 { c << (40 - top) } else { c >> (top - 40) }
         });
         let len2: i128 = v.iter().map(|&c| c * c).sum();
         let len = len2.isqrt();
@@ -147,11 +137,7 @@ impl Line {
     pub fn new(origin: Point, dir: Direction) -> Self {
         let d = dir.bits();
         let a = d.iter().map(|&c| i128::from(c) * i128::from(c)).sum();
-        Self {
-            origin: origin.bits(),
-            dir: d,
-            a,
-        }
+        Self { origin: origin.bits(), dir: d, a }
     }
 
     /// Raw Q16.16 origin.

@@ -11,10 +11,7 @@
 //! The fixed-point formats and the ranges in which nothing overflows are in
 //! [`limits`].
 #![no_std]
-#![cfg_attr(
-    not(test),
-    deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
-)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 pub mod cube_box;

@@ -78,13 +78,7 @@ impl Sphere {
         if !(MIN_RADIUS_RAW..=MAX_RADIUS_RAW).contains(&radius) {
             return Err(Error::OutOfRange(Field::Radius));
         }
-        Ok(Self {
-            id,
-            center,
-            radius,
-            r2: i64::from(radius) * i64::from(radius),
-            material,
-        })
+        Ok(Self { id, center, radius, r2: i64::from(radius) * i64::from(radius), material })
     }
 
     /// Scene-wide id.
@@ -122,30 +116,15 @@ impl Sphere {
         ];
         let d = [i64::from(d[0]), i64::from(d[1]), i64::from(d[2])];
         // f x d: each term below 2^61, exact in i64 (see crate::limits).
-        let cross = [
-            f[1] * d[2] - f[2] * d[1],
-            f[2] * d[0] - f[0] * d[2],
-            f[0] * d[1] - f[1] * d[0],
-        ];
+        let cross = [f[1] * d[2] - f[2] * d[1], f[2] * d[0] - f[0] * d[2], f[0] * d[1] - f[1] * d[0]];
         let a = line.dir_len2();
-        let disc = a * i128::from(self.r2)
-            - cross
-                .iter()
-                .map(|&x| i128::from(x) * i128::from(x))
-                .sum::<i128>();
+        let disc =
+            a * i128::from(self.r2) - cross.iter().map(|&x| i128::from(x) * i128::from(x)).sum::<i128>();
         if disc < 0 {
             return None;
         }
-        let b: i128 = f
-            .iter()
-            .zip(&d)
-            .map(|(&x, &y)| i128::from(x) * i128::from(y))
-            .sum();
-        let c: i128 = f
-            .iter()
-            .map(|&x| i128::from(x) * i128::from(x))
-            .sum::<i128>()
-            - i128::from(self.r2);
+        let b: i128 = f.iter().zip(&d).map(|(&x, &y)| i128::from(x) * i128::from(y)).sum();
+        let c: i128 = f.iter().map(|&x| i128::from(x) * i128::from(x)).sum::<i128>() - i128::from(self.r2);
         let s = disc.unsigned_abs().isqrt() as i128;
         let (t, inside) = match (c.signum(), b < 0) {
             // Outside, sphere ahead: near root t0 = c / q with q = s - b > 0.
@@ -159,10 +138,7 @@ impl Sphere {
             (_, true) => (div_t(s - b, a), true),
             (_, false) => (div_t(c, -(b + s)), true),
         };
-        Some(Root {
-            t: Scalar::from_bits(i32::try_from(t).ok()?),
-            inside,
-        })
+        Some(Root { t: Scalar::from_bits(i32::try_from(t).ok()?), inside })
     }
 }
 

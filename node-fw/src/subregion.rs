@@ -95,20 +95,14 @@ impl<const S: usize, const R: usize, const C: usize> Default for Subregion<S, R,
 }
 
 impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
-    const FITS_U16: () = assert!(
-        S <= u16::MAX as usize && R <= u16::MAX as usize,
-        "S and R index with u16"
-    );
+    const FITS_U16: () = assert!(S <= u16::MAX as usize && R <= u16::MAX as usize, "S and R index with u16");
 
     /// An empty subregion of an empty box; [`Subregion::assign`] gives it one.
     pub const fn new() -> Self {
         let () = Self::FITS_U16;
         Self {
             grid: Grid::UNIT,
-            bounds: CubeBox {
-                lo: [0; 3],
-                hi: [0; 3],
-            },
+            bounds: CubeBox { lo: [0; 3], hi: [0; 3] },
             spheres: Vec::new(),
             mailbox: [0; S],
             stamp: 0,
@@ -122,8 +116,8 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
     /// Takes the box `[lo, hi)` of `grid` and drops every sphere.
     pub fn assign(&mut self, grid: Grid, bounds: CubeBox) -> Result<(), Error> {
         let size = grid.size();
-        let inside = (0..3)
-            .all(|a| at(&bounds.lo, a) < at(&bounds.hi, a) && at(&bounds.hi, a) <= at(&size, a));
+        let inside =
+            (0..3).all(|a| at(&bounds.lo, a) < at(&bounds.hi, a) && at(&bounds.hi, a) <= at(&size, a));
         if !inside {
             return Err(Error::OutOfRange(Field::Subregion));
         }
@@ -186,16 +180,13 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         }
         let total = self.ref_total + count;
         if total > R {
-            let error = Error::RefCapacity {
-                capacity: R as u32,
-                needed: u32::try_from(total).unwrap_or(u32::MAX),
-            };
+            let error =
+                Error::RefCapacity { capacity: R as u32, needed: u32::try_from(total).unwrap_or(u32::MAX) };
             return Err(Rejected { sphere, error });
         }
-        self.spheres.push(sphere).map_err(|sphere| Rejected {
-            sphere,
-            error: Error::SphereCapacity { capacity: S as u32 },
-        })?;
+        self.spheres
+            .push(sphere)
+            .map_err(|sphere| Rejected { sphere, error: Error::SphereCapacity { capacity: S as u32 } })?;
         self.ref_total = total;
         self.indexed = false;
         Ok(true)
@@ -253,8 +244,7 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         let start = usize::from(self.cube_start.get(cube).copied().unwrap_or(0));
         for &index in self.refs.get(start..end).unwrap_or_default() {
             let index = usize::from(index);
-            let (Some(sphere), Some(seen)) = (self.spheres.get(index), self.mailbox.get_mut(index))
-            else {
+            let (Some(sphere), Some(seen)) = (self.spheres.get(index), self.mailbox.get_mut(index)) else {
                 continue;
             };
             if *seen == stamp || query.ignore == Some(sphere.id()) {
@@ -271,10 +261,7 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
             if query.any_hit {
                 return Some(Outcome::Blocked);
             }
-            let hit = Hit {
-                t: root.t,
-                sphere: sphere.id(),
-            };
+            let hit = Hit { t: root.t, sphere: sphere.id() };
             if best.is_none_or(|b| hit < b) {
                 *best = Some(hit);
             }
@@ -343,18 +330,9 @@ mod tests {
     fn mailbox_stamp_wrap_clears_the_mailbox() {
         let grid = Grid::new([4; 3]).unwrap();
         let mut region: Subregion<4, 64, 64> = Subregion::new();
-        region
-            .assign(
-                grid,
-                CubeBox {
-                    lo: [0; 3],
-                    hi: [4; 3],
-                },
-            )
-            .unwrap();
+        region.assign(grid, CubeBox { lo: [0; 3], hi: [4; 3] }).unwrap();
         let center = Point::from_bits([2 << 16; 3]).unwrap();
-        let sphere =
-            Sphere::new(9, center, Scalar::from_num(0.5), Material::default(), &grid).unwrap();
+        let sphere = Sphere::new(9, center, Scalar::from_num(0.5), Material::default(), &grid).unwrap();
         region.insert(sphere).unwrap();
         let origin = Point::from_bits([0, 2 << 16, 2 << 16]).unwrap();
         let line = Line::new(origin, Direction::from_bits([1 << 30, 0, 0]).unwrap());
@@ -366,11 +344,7 @@ mod tests {
                 let mut walk = DigitalLine::enter(&line, &grid).unwrap();
                 let (mut best, mut stats) = (None, TraceStats::default());
                 let out = region.trace(&line, &mut walk, &mut best, &Query::default(), &mut stats);
-                assert!(
-                    matches!(out, Outcome::Hit(h) if h.sphere == 9),
-                    "stamp {}: {out:?}",
-                    region.stamp
-                );
+                assert!(matches!(out, Outcome::Hit(h) if h.sphere == 9), "stamp {}: {out:?}", region.stamp);
                 assert_eq!(stats.sphere_tests, 1);
             }
         }

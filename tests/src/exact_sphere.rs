@@ -20,15 +20,8 @@ pub struct ExactHit {
 /// radius; Q2.30 direction). Same conventions as the firmware: the hit at
 /// `t >= 0`, the exit point from inside, an origin on the surface counts as
 /// outside.
-pub fn exact_hit(
-    origin: [i32; 3],
-    dir: [i32; 3],
-    center: [i32; 3],
-    radius: i32,
-) -> Option<ExactHit> {
-    let f: Vec<BigInt> = (0..3)
-        .map(|i| BigInt::from(origin[i] as i64 - center[i] as i64))
-        .collect();
+pub fn exact_hit(origin: [i32; 3], dir: [i32; 3], center: [i32; 3], radius: i32) -> Option<ExactHit> {
+    let f: Vec<BigInt> = (0..3).map(|i| BigInt::from(origin[i] as i64 - center[i] as i64)).collect();
     let d: Vec<BigInt> = dir.iter().map(|&v| BigInt::from(v)).collect();
     let a: BigInt = d.iter().map(|x| x * x).sum();
     let b: BigInt = f.iter().zip(&d).map(|(x, y)| x * y).sum();

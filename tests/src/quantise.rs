@@ -14,10 +14,7 @@ pub fn point_raw(p: [f64; 3]) -> [i32; 3] {
 
 /// The firmware's line through `o` along `d` (any length, nonzero).
 pub fn line(o: [f64; 3], d: [f64; 3]) -> Line {
-    Line::new(
-        Point::from_bits(point_raw(o)).expect("origin in range"),
-        direction(d),
-    )
+    Line::new(Point::from_bits(point_raw(o)).expect("origin in range"), direction(d))
 }
 
 /// Rounds a direction of any length to a unit Q2.30 direction.

@@ -31,10 +31,7 @@ pub struct RationalRay {
 impl RationalRay {
     /// From raw Q16.16 origin and Q2.30 direction.
     pub fn from_raw(origin: [i32; 3], dir: [i32; 3]) -> Self {
-        Self {
-            o: origin.map(|v| q(v as i64, 1 << 16)),
-            d: dir.map(|v| q(v as i64, 1 << 30)),
-        }
+        Self { o: origin.map(|v| q(v as i64, 1 << 16)), d: dir.map(|v| q(v as i64, 1 << 30)) }
     }
 
     /// The point at `t`.
@@ -122,19 +119,10 @@ pub fn walk(origin: [i32; 3], dir: [i32; 3], grid: [u16; 3]) -> Vec<[i32; 3]> {
 /// touches the ray inside the grid, the cubes chain without a gap from `t_in`
 /// to `t_out`, and every cube whose interior the ray crosses with positive
 /// length is visited. Returns a description of the first violation.
-pub fn check_walk(
-    origin: [i32; 3],
-    dir: [i32; 3],
-    grid: [u16; 3],
-    cells: &[[i32; 3]],
-) -> Result<(), String> {
+pub fn check_walk(origin: [i32; 3], dir: [i32; 3], grid: [u16; 3], cells: &[[i32; 3]]) -> Result<(), String> {
     let ray = RationalRay::from_raw(origin, dir);
     let Some((t_in, t_out)) = grid_interval(&ray, grid) else {
-        return if cells.is_empty() {
-            Ok(())
-        } else {
-            Err("walk of a ray that misses the grid".into())
-        };
+        return if cells.is_empty() { Ok(()) } else { Err("walk of a ray that misses the grid".into()) };
     };
     if cells.is_empty() {
         return Err("ray crosses the grid but walk is empty".into());
@@ -181,9 +169,7 @@ pub fn check_walk(
         }
         let cell: [i32; 3] = p.map(|x| i32::try_from(x.floor().to_integer()).unwrap());
         if !cells.contains(&cell) {
-            return Err(format!(
-                "cube {cell:?} crossed with positive length but not visited"
-            ));
+            return Err(format!("cube {cell:?} crossed with positive length but not visited"));
         }
     }
     Ok(())

@@ -64,207 +64,42 @@ fn add(a: [f64; 3], b: [f64; 3], s: f64) -> [f64; 3] {
 pub fn walk_cases() -> Vec<WalkCase> {
     let g8 = [8; 3];
     let g256 = [256; 3];
-    let c = |name, grid, origin, dir| WalkCase {
-        name,
-        grid,
-        origin,
-        dir,
-    };
+    let c = |name, grid, origin, dir| WalkCase { name, grid, origin, dir };
     let far = add([128.0; 3], [1.0, 0.618, 0.382], -10_000.0 / 1.236_067_977_5);
     vec![
-        c(
-            "origin on plane, d_x > 0",
-            g8,
-            [3.0, 2.5, 2.5],
-            [1.0, 0.3, 0.2],
-        ),
-        c(
-            "origin on plane, d_x < 0",
-            g8,
-            [3.0, 2.5, 2.5],
-            [-1.0, 0.3, 0.2],
-        ),
-        c(
-            "origin on plane, d_x = 0",
-            g8,
-            [3.0, 2.5, 2.5],
-            [0.0, 1.0, 0.3],
-        ),
-        c(
-            "origin on edge, into both",
-            g8,
-            [3.0, 3.0, 2.5],
-            [1.0, 1.0, 0.1],
-        ),
-        c(
-            "origin on edge, mixed signs",
-            g8,
-            [3.0, 3.0, 2.5],
-            [-1.0, 1.0, 0.2],
-        ),
-        c(
-            "origin on edge, along it",
-            g8,
-            [3.0, 3.0, 2.5],
-            [0.0, 0.0, 1.0],
-        ),
-        c(
-            "origin on edge, against it",
-            g8,
-            [3.0, 3.0, 2.5],
-            [0.0, 0.0, -1.0],
-        ),
-        c(
-            "origin on corner, (1,1,1)",
-            g8,
-            [3.0, 3.0, 3.0],
-            [1.0, 1.0, 1.0],
-        ),
-        c(
-            "origin on corner, (-1,-1,-1)",
-            g8,
-            [3.0, 3.0, 3.0],
-            [-1.0, -1.0, -1.0],
-        ),
-        c(
-            "origin on corner, (1,-1,0)",
-            g8,
-            [3.0, 3.0, 3.0],
-            [1.0, -1.0, 0.0],
-        ),
-        c(
-            "origin on corner, (0,0,-1)",
-            g8,
-            [3.0, 3.0, 3.0],
-            [0.0, 0.0, -1.0],
-        ),
+        c("origin on plane, d_x > 0", g8, [3.0, 2.5, 2.5], [1.0, 0.3, 0.2]),
+        c("origin on plane, d_x < 0", g8, [3.0, 2.5, 2.5], [-1.0, 0.3, 0.2]),
+        c("origin on plane, d_x = 0", g8, [3.0, 2.5, 2.5], [0.0, 1.0, 0.3]),
+        c("origin on edge, into both", g8, [3.0, 3.0, 2.5], [1.0, 1.0, 0.1]),
+        c("origin on edge, mixed signs", g8, [3.0, 3.0, 2.5], [-1.0, 1.0, 0.2]),
+        c("origin on edge, along it", g8, [3.0, 3.0, 2.5], [0.0, 0.0, 1.0]),
+        c("origin on edge, against it", g8, [3.0, 3.0, 2.5], [0.0, 0.0, -1.0]),
+        c("origin on corner, (1,1,1)", g8, [3.0, 3.0, 3.0], [1.0, 1.0, 1.0]),
+        c("origin on corner, (-1,-1,-1)", g8, [3.0, 3.0, 3.0], [-1.0, -1.0, -1.0]),
+        c("origin on corner, (1,-1,0)", g8, [3.0, 3.0, 3.0], [1.0, -1.0, 0.0]),
+        c("origin on corner, (0,0,-1)", g8, [3.0, 3.0, 3.0], [0.0, 0.0, -1.0]),
         c("direction (1,0,0)", g256, [0.5, 0.5, 0.5], [1.0, 0.0, 0.0]),
-        c(
-            "direction (1,1e-6,0)",
-            g256,
-            [0.5, 0.5, 0.5],
-            [1.0, 1e-6, 0.0],
-        ),
-        c(
-            "direction (1,2^-16,0)",
-            g256,
-            [0.5, 0.5, 0.5],
-            [1.0, 1.0 / 65536.0, 0.0],
-        ),
-        c(
-            "direction (1,2^-16,0) from a boundary",
-            g256,
-            [0.0, 3.0, 0.0],
-            [1.0, 1.0 / 65536.0, 0.0],
-        ),
-        c(
-            "(1,1,1) through lattice corners",
-            g256,
-            [0.0, 0.0, 0.0],
-            [1.0, 1.0, 1.0],
-        ),
-        c(
-            "(1,1,1) from outside through corners",
-            g256,
-            [-10.0, -10.0, -10.0],
-            [1.0, 1.0, 1.0],
-        ),
-        c(
-            "(-1,1,-1) through corners",
-            g256,
-            [200.0, 3.0, 100.0],
-            [-1.0, 1.0, -1.0],
-        ),
-        c(
-            "longest walk along (1,0.618,0.382)",
-            g256,
-            [0.5, 0.5, 0.5],
-            [1.0, 0.618, 0.382],
-        ),
-        c(
-            "eye 10^4 outside along (1,0.618,0.382)",
-            g256,
-            far,
-            [1.0, 0.618, 0.382],
-        ),
-        c(
-            "eye 10^4 outside on every axis",
-            g256,
-            [-10_000.0; 3],
-            [1.0, 1.0, 1.0],
-        ),
-        c(
-            "eye 10^4 outside, near-axis",
-            g256,
-            [10_256.0, 128.5, 128.25],
-            [-1.0, 1e-5, -2e-6],
-        ),
-        c(
-            "coordinates at the top of the range",
-            g256,
-            [10_256.0; 3],
-            [-1.0, -0.999, -0.998],
-        ),
-        c(
-            "top of the range, exact diagonal",
-            g256,
-            [10_256.0; 3],
-            [-1.0, -1.0, -1.0],
-        ),
-        c(
-            "coordinates at the bottom of the range",
-            g256,
-            [-10_000.0, 100.0, 100.0],
-            [1.0, 0.0, 0.0],
-        ),
-        c(
-            "grid of one cube, inside",
-            [1; 3],
-            [0.5, 0.5, 0.5],
-            [1.0, 2.0, 3.0],
-        ),
-        c(
-            "grid of one cube, from outside",
-            [1; 3],
-            [-3.0, 0.5, 0.5],
-            [1.0, 0.0, 0.0],
-        ),
-        c(
-            "ray in the grid's lower face plane",
-            g8,
-            [0.0, 4.5, -3.0],
-            [0.0, 0.0, 1.0],
-        ),
-        c(
-            "ray in the grid's upper face plane",
-            g8,
-            [8.0, 4.5, -3.0],
-            [0.0, 0.1, 1.0],
-        ),
-        c(
-            "ray touching only a grid edge",
-            g8,
-            [-1.0, 1.0, 4.5],
-            [1.0, -1.0, 0.0],
-        ),
-        c(
-            "ray missing the grid",
-            g8,
-            [-1.0, -1.0, -1.0],
-            [-1.0, 0.5, 0.5],
-        ),
-        c(
-            "ray leaving from the grid face",
-            g8,
-            [0.0, 4.5, 4.5],
-            [-1.0, 0.2, 0.1],
-        ),
-        c(
-            "flat grid 256x1x1",
-            [256, 1, 1],
-            [-5.0, 0.5, 0.5],
-            [1.0, 0.001, -0.001],
-        ),
+        c("direction (1,1e-6,0)", g256, [0.5, 0.5, 0.5], [1.0, 1e-6, 0.0]),
+        c("direction (1,2^-16,0)", g256, [0.5, 0.5, 0.5], [1.0, 1.0 / 65536.0, 0.0]),
+        c("direction (1,2^-16,0) from a boundary", g256, [0.0, 3.0, 0.0], [1.0, 1.0 / 65536.0, 0.0]),
+        c("(1,1,1) through lattice corners", g256, [0.0, 0.0, 0.0], [1.0, 1.0, 1.0]),
+        c("(1,1,1) from outside through corners", g256, [-10.0, -10.0, -10.0], [1.0, 1.0, 1.0]),
+        c("(-1,1,-1) through corners", g256, [200.0, 3.0, 100.0], [-1.0, 1.0, -1.0]),
+        c("longest walk along (1,0.618,0.382)", g256, [0.5, 0.5, 0.5], [1.0, 0.618, 0.382]),
+        c("eye 10^4 outside along (1,0.618,0.382)", g256, far, [1.0, 0.618, 0.382]),
+        c("eye 10^4 outside on every axis", g256, [-10_000.0; 3], [1.0, 1.0, 1.0]),
+        c("eye 10^4 outside, near-axis", g256, [10_256.0, 128.5, 128.25], [-1.0, 1e-5, -2e-6]),
+        c("coordinates at the top of the range", g256, [10_256.0; 3], [-1.0, -0.999, -0.998]),
+        c("top of the range, exact diagonal", g256, [10_256.0; 3], [-1.0, -1.0, -1.0]),
+        c("coordinates at the bottom of the range", g256, [-10_000.0, 100.0, 100.0], [1.0, 0.0, 0.0]),
+        c("grid of one cube, inside", [1; 3], [0.5, 0.5, 0.5], [1.0, 2.0, 3.0]),
+        c("grid of one cube, from outside", [1; 3], [-3.0, 0.5, 0.5], [1.0, 0.0, 0.0]),
+        c("ray in the grid's lower face plane", g8, [0.0, 4.5, -3.0], [0.0, 0.0, 1.0]),
+        c("ray in the grid's upper face plane", g8, [8.0, 4.5, -3.0], [0.0, 0.1, 1.0]),
+        c("ray touching only a grid edge", g8, [-1.0, 1.0, 4.5], [1.0, -1.0, 0.0]),
+        c("ray missing the grid", g8, [-1.0, -1.0, -1.0], [-1.0, 0.5, 0.5]),
+        c("ray leaving from the grid face", g8, [0.0, 4.5, 4.5], [-1.0, 0.2, 0.1]),
+        c("flat grid 256x1x1", [256, 1, 1], [-5.0, 0.5, 0.5], [1.0, 0.001, -0.001]),
     ]
 }
 
@@ -277,40 +112,16 @@ pub fn hit_cases() -> Vec<HitCase> {
         let origin = add(add(center, U, -dist), W, impact);
         let ideal_t = matches!(expect, Expect::Hit { .. }).then(|| {
             let h = (radius * radius - impact * impact).sqrt();
-            if dist.abs() < radius && impact.abs() < radius {
-                dist + h
-            } else {
-                dist - h
-            }
+            if dist.abs() < radius && impact.abs() < radius { dist + h } else { dist - h }
         });
-        cases.push(HitCase {
-            name,
-            origin,
-            dir: U,
-            center,
-            radius,
-            expect,
-            ideal_t,
-        });
+        cases.push(HitCase { name, origin, dir: U, center, radius, expect, ideal_t });
     };
     for r in [1e-3, 100.0, 200.0, 0.0] {
-        push(
-            format!("r = {r} rejected"),
-            20.0,
-            0.0,
-            r,
-            Expect::RejectRadius,
-        );
+        push(format!("r = {r} rejected"), 20.0, 0.0, r, Expect::RejectRadius);
     }
     let tiny = 1.0 / 256.0;
     for dist in [20.0, 150.0, 1000.0] {
-        push(
-            format!("r = 1/256 at {dist}, centre"),
-            dist,
-            0.0,
-            tiny,
-            Expect::Hit { inside: false },
-        );
+        push(format!("r = 1/256 at {dist}, centre"), dist, 0.0, tiny, Expect::Hit { inside: false });
         push(
             format!("r = 1/256 at {dist}, impact r/2"),
             dist,
@@ -318,22 +129,10 @@ pub fn hit_cases() -> Vec<HitCase> {
             tiny,
             Expect::Hit { inside: false },
         );
-        push(
-            format!("r = 1/256 at {dist}, impact 2r"),
-            dist,
-            2.0 * tiny,
-            tiny,
-            Expect::Miss,
-        );
+        push(format!("r = 1/256 at {dist}, impact 2r"), dist, 2.0 * tiny, tiny, Expect::Miss);
     }
     for dist in [150.0, 1000.0] {
-        push(
-            format!("r = 64, eye {dist} away, centre"),
-            dist,
-            0.0,
-            64.0,
-            Expect::Hit { inside: false },
-        );
+        push(format!("r = 64, eye {dist} away, centre"), dist, 0.0, 64.0, Expect::Hit { inside: false });
         push(
             format!("r = 64, eye {dist} away, impact 0.999r"),
             dist,
@@ -341,13 +140,7 @@ pub fn hit_cases() -> Vec<HitCase> {
             64.0,
             Expect::Hit { inside: false },
         );
-        push(
-            format!("r = 64, eye {dist} away, impact 1.001r"),
-            dist,
-            64.064,
-            64.0,
-            Expect::Miss,
-        );
+        push(format!("r = 64, eye {dist} away, impact 1.001r"), dist, 64.064, 64.0, Expect::Miss);
     }
     for r in [1.0, 64.0] {
         for dist in [20.0, 150.0] {
@@ -359,13 +152,7 @@ pub fn hit_cases() -> Vec<HitCase> {
                 r,
                 Expect::Hit { inside: false },
             );
-            push(
-                format!("grazing r = {r} at {d}, impact r(1 + 1e-3)"),
-                d,
-                r * (1.0 + 1e-3),
-                r,
-                Expect::Miss,
-            );
+            push(format!("grazing r = {r} at {d}, impact r(1 + 1e-3)"), d, r * (1.0 + 1e-3), r, Expect::Miss);
             push(
                 format!("grazing r = {r} at {d}, impact r(1 - 1e-6)"),
                 d,
@@ -382,40 +169,10 @@ pub fn hit_cases() -> Vec<HitCase> {
             );
         }
     }
-    push(
-        "origin inside, at the centre".into(),
-        0.0,
-        0.0,
-        2.0,
-        Expect::Hit { inside: true },
-    );
-    push(
-        "origin inside, off centre".into(),
-        0.5,
-        0.7,
-        2.0,
-        Expect::Hit { inside: true },
-    );
-    push(
-        "origin inside a radius-64 sphere".into(),
-        30.0,
-        20.0,
-        64.0,
-        Expect::Hit { inside: true },
-    );
-    push(
-        "sphere behind the origin".into(),
-        -10.0,
-        0.0,
-        2.0,
-        Expect::Miss,
-    );
-    push(
-        "origin just outside, heading in".into(),
-        2.001,
-        0.0,
-        2.0,
-        Expect::Hit { inside: false },
-    );
+    push("origin inside, at the centre".into(), 0.0, 0.0, 2.0, Expect::Hit { inside: true });
+    push("origin inside, off centre".into(), 0.5, 0.7, 2.0, Expect::Hit { inside: true });
+    push("origin inside a radius-64 sphere".into(), 30.0, 20.0, 64.0, Expect::Hit { inside: true });
+    push("sphere behind the origin".into(), -10.0, 0.0, 2.0, Expect::Miss);
+    push("origin just outside, heading in".into(), 2.001, 0.0, 2.0, Expect::Hit { inside: false });
     cases
 }

@@ -24,10 +24,7 @@ fn firmware_walk(line: &Line, grid: [u16; 3]) -> Vec<[i32; 3]> {
 fn check(name: &str, line: &Line, grid: [u16; 3]) -> usize {
     let got = firmware_walk(line, grid);
     let want = rational_walk::walk(line.origin(), line.dir(), grid);
-    assert_eq!(
-        got, want,
-        "{name}: walk differs from the rational reference"
-    );
+    assert_eq!(got, want, "{name}: walk differs from the rational reference");
     if let Err(e) = rational_walk::check_walk(line.origin(), line.dir(), grid, &got) {
         panic!("{name}: {e}");
     }
@@ -40,9 +37,7 @@ fn stiff_walk_cases_match_reference() {
         let line = quantise::line(case.origin, case.dir);
         let n = check(case.name, &line, case.grid);
         match case.name {
-            "ray touching only a grid edge"
-            | "ray missing the grid"
-            | "ray leaving from the grid face" => {
+            "ray touching only a grid edge" | "ray missing the grid" | "ray leaving from the grid face" => {
                 assert_eq!(n, 0, "{}", case.name)
             }
             _ => assert!(n > 0, "{}: empty walk", case.name),
@@ -56,12 +51,7 @@ fn known_walks() {
     let line = quantise::line([0.5, 0.5, 0.5], [1.0, 0.0, 0.0]);
     let cells = firmware_walk(&line, [256; 3]);
     assert_eq!(cells.len(), 256);
-    assert!(
-        cells
-            .iter()
-            .enumerate()
-            .all(|(i, c)| *c == [i as i32, 0, 0])
-    );
+    assert!(cells.iter().enumerate().all(|(i, c)| *c == [i as i32, 0, 0]));
     // Through lattice corners along (1,1,1): each corner costs two extra
     // single-point cubes under the one-axis-per-step rule: x first, then y, then z.
     let line = quantise::line([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]);
@@ -75,11 +65,7 @@ fn random_rays_match_reference() {
     let mut rng = SmallRng::seed_from_u64(0x5eed_0001);
     let mut cubes = 0;
     for i in 0..6000 {
-        let grid = [
-            rng.gen_range(1..=24u16),
-            rng.gen_range(1..=24u16),
-            rng.gen_range(1..=24u16),
-        ];
+        let grid = [rng.gen_range(1..=24u16), rng.gen_range(1..=24u16), rng.gen_range(1..=24u16)];
         // Origins inside, on lattice planes, and outside the grid.
         let origin: [f64; 3] = std::array::from_fn(|a| {
             let s = grid[a] as f64;
@@ -102,10 +88,7 @@ fn random_rays_match_reference() {
         let line = quantise::line(origin, dir);
         cubes += check(&format!("random ray {i}"), &line, grid);
     }
-    assert!(
-        cubes > 20_000,
-        "too few cubes walked to mean anything: {cubes}"
-    );
+    assert!(cubes > 20_000, "too few cubes walked to mean anything: {cubes}");
 }
 
 #[test]
@@ -136,16 +119,7 @@ fn resume_rejects_cells_off_the_line() {
     let line = quantise::line([0.5, 0.5, 0.5], [1.0, 0.25, 0.0]);
     assert!(DigitalLine::enter(&line, &grid).is_some());
     assert!(DigitalLine::resume(&line, [0, 0, 0]).is_ok());
-    assert!(
-        DigitalLine::resume(&line, [0, 5, 0]).is_err(),
-        "cube the line never reaches"
-    );
-    assert!(
-        DigitalLine::resume(&line, [0, 0, 3]).is_err(),
-        "z off the line with d_z = 0"
-    );
-    assert!(
-        DigitalLine::resume(&line, [-3, 0, 0]).is_err(),
-        "cube behind the origin"
-    );
+    assert!(DigitalLine::resume(&line, [0, 5, 0]).is_err(), "cube the line never reaches");
+    assert!(DigitalLine::resume(&line, [0, 0, 3]).is_err(), "z off the line with d_z = 0");
+    assert!(DigitalLine::resume(&line, [-3, 0, 0]).is_err(), "cube behind the origin");
 }

@@ -26,11 +26,7 @@ fn agree(name: &str, line: &node_fw::Line, s: &Sphere) -> Option<f64> {
         (Some(g), Some(w)) => {
             assert_eq!(g.inside, w.inside, "{name}: inside flag");
             let err = (g.t.to_num::<f64>() - w.t).abs();
-            assert!(
-                err <= 2.0 * ULP,
-                "{name}: depth error {err:e} > 2 ulp (t = {})",
-                w.t
-            );
+            assert!(err <= 2.0 * ULP, "{name}: depth error {err:e} > 2 ulp (t = {})", w.t);
             Some(err)
         }
         (g, w) => panic!("{name}: firmware {g:?} but exact reference {w:?}"),
@@ -42,9 +38,7 @@ fn impact_of(case: &stiff::HitCase) -> f64 {
     let f: [f64; 3] = std::array::from_fn(|a| case.origin[a] - case.center[a]);
     let len = case.dir.iter().map(|d| d * d).sum::<f64>().sqrt();
     let along: f64 = (0..3).map(|a| f[a] * case.dir[a] / len).sum();
-    (f.iter().map(|x| x * x).sum::<f64>() - along * along)
-        .max(0.0)
-        .sqrt()
+    (f.iter().map(|x| x * x).sum::<f64>() - along * along).max(0.0).sqrt()
 }
 
 #[test]
@@ -70,18 +64,14 @@ fn stiff_hit_cases() {
                 // direction 2^-31 per component per cube travelled), amplified
                 // near grazing by the conditioning dt/dp = p / h of the depth.
                 let ideal = case.ideal_t.unwrap();
-                let shift = (2.0 * 3f64.sqrt() + 1.0) * ULP / 2.0
-                    + ideal.abs() * 3f64.sqrt() * 2f64.powi(-31);
+                let shift =
+                    (2.0 * 3f64.sqrt() + 1.0) * ULP / 2.0 + ideal.abs() * 3f64.sqrt() * 2f64.powi(-31);
                 let (p, r) = (impact_of(&case), case.radius);
                 let h = (r * r - p * p).max(0.0).sqrt();
                 let bound = shift * (1.0 + p / h.max(1e-300)).min(1e6) + 2.0 * ULP;
                 let err = (g.t.to_num::<f64>() - ideal).abs();
                 worst_ideal = worst_ideal.max(err);
-                assert!(
-                    err <= bound,
-                    "{}: ideal depth error {err:e} > bound {bound:e}",
-                    case.name
-                );
+                assert!(err <= bound, "{}: ideal depth error {err:e} > bound {bound:e}", case.name);
                 assert!(exact_err.is_some());
             }
             stiff::Expect::Miss => assert_eq!(got, None, "{}", case.name),
@@ -140,8 +130,7 @@ fn random_hits_match_ideal_geometry_outside_quantisation_bound() {
         // A perpendicular of length `impact`.
         let p = [u[1], -u[0], 0.0];
         let pl = (p[0] * p[0] + p[1] * p[1]).sqrt().max(1e-12);
-        let origin: [f64; 3] =
-            std::array::from_fn(|a| center[a] - dist * u[a] + impact * p[a] / pl);
+        let origin: [f64; 3] = std::array::from_fn(|a| center[a] - dist * u[a] + impact * p[a] / pl);
         let ideal_hit = impact <= radius;
         // Quantisation moves the line by at most the rounding of origin, centre and
         // radius (2^-17 each, per axis) plus the direction's rounding over the distance.
@@ -152,10 +141,7 @@ fn random_hits_match_ideal_geometry_outside_quantisation_bound() {
         }
         let s = sphere(center, radius, &grid).unwrap();
         let got = s.intersect(&quantise::line(origin, u)).is_some();
-        assert_eq!(
-            got, ideal_hit,
-            "impact {impact} radius {radius} dist {dist}"
-        );
+        assert_eq!(got, ideal_hit, "impact {impact} radius {radius} dist {dist}");
         checked += 1;
     }
     assert!(checked > 19_000, "checked {checked}, ambiguous {ambiguous}");
@@ -164,45 +150,18 @@ fn random_hits_match_ideal_geometry_outside_quantisation_bound() {
 #[test]
 fn out_of_range_inputs_are_rejected() {
     let grid = Grid::new([16; 3]).unwrap();
-    assert_eq!(
-        sphere([8.0; 3], 0.0, &grid),
-        Err(Error::OutOfRange(Field::Radius))
-    );
-    assert_eq!(
-        sphere([8.0; 3], -1.0, &grid),
-        Err(Error::OutOfRange(Field::Radius))
-    );
-    assert_eq!(
-        sphere([8.0; 3], 64.5, &grid),
-        Err(Error::OutOfRange(Field::Radius))
-    );
-    assert_eq!(
-        sphere([16.5, 8.0, 8.0], 1.0, &grid),
-        Err(Error::OutOfRange(Field::Center))
-    );
-    assert_eq!(
-        sphere([-0.01, 8.0, 8.0], 1.0, &grid),
-        Err(Error::OutOfRange(Field::Center))
-    );
-    assert!(
-        sphere([16.0, 0.0, 8.0], 1.0 / 256.0, &grid).is_ok(),
-        "closed grid box, smallest radius"
-    );
+    assert_eq!(sphere([8.0; 3], 0.0, &grid), Err(Error::OutOfRange(Field::Radius)));
+    assert_eq!(sphere([8.0; 3], -1.0, &grid), Err(Error::OutOfRange(Field::Radius)));
+    assert_eq!(sphere([8.0; 3], 64.5, &grid), Err(Error::OutOfRange(Field::Radius)));
+    assert_eq!(sphere([16.5, 8.0, 8.0], 1.0, &grid), Err(Error::OutOfRange(Field::Center)));
+    assert_eq!(sphere([-0.01, 8.0, 8.0], 1.0, &grid), Err(Error::OutOfRange(Field::Center)));
+    assert!(sphere([16.0, 0.0, 8.0], 1.0 / 256.0, &grid).is_ok(), "closed grid box, smallest radius");
     assert!(Grid::new([0, 4, 4]).is_err());
     assert!(Grid::new([257, 4, 4]).is_err());
-    assert!(
-        node_fw::Direction::from_bits([0; 3]).is_err(),
-        "zero direction"
-    );
-    assert!(
-        node_fw::Direction::from_bits([1 << 29, 0, 0]).is_err(),
-        "not unit length"
-    );
+    assert!(node_fw::Direction::from_bits([0; 3]).is_err(), "zero direction");
+    assert!(node_fw::Direction::from_bits([1 << 29, 0, 0]).is_err(), "not unit length");
     assert!(node_fw::Direction::normalize([0; 3]).is_err());
-    assert!(
-        Point::from_bits([i32::MAX, 0, 0]).is_err(),
-        "beyond 10^4 cubes outside"
-    );
+    assert!(Point::from_bits([i32::MAX, 0, 0]).is_err(), "beyond 10^4 cubes outside");
     assert!(Point::from_bits([quantise::pos(-10_000.0), 0, quantise::pos(10_256.0)]).is_ok());
     assert!(Point::from_bits([quantise::pos(-10_000.01), 0, 0]).is_err());
 }

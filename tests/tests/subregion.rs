@@ -3,8 +3,7 @@
 
 use fixed::types::I16F16;
 use node_fw::{
-    CubeBox, DigitalLine, Error, Grid, Line, Material, Outcome, Point, Query, Sphere, Subregion,
-    TraceStats,
+    CubeBox, DigitalLine, Error, Grid, Line, Material, Outcome, Point, Query, Sphere, Subregion, TraceStats,
 };
 use rand::{Rng, SeedableRng, rngs::SmallRng};
 use tests::exact_sphere::exact_hit;
@@ -20,14 +19,7 @@ fn region(grid: Grid, lo: [u16; 3], hi: [u16; 3]) -> Box<Region> {
 
 fn sphere(id: u16, c: [f64; 3], r: f64, grid: &Grid) -> Sphere {
     let c = Point::from_bits(quantise::point_raw(c)).unwrap();
-    Sphere::new(
-        id,
-        c,
-        I16F16::from_bits(quantise::pos(r)),
-        Material::default(),
-        grid,
-    )
-    .unwrap()
+    Sphere::new(id, c, I16F16::from_bits(quantise::pos(r)), Material::default(), grid).unwrap()
 }
 
 /// Registered cubes of one sphere in a whole-grid subregion.
@@ -48,10 +40,7 @@ fn registration_corner_and_tangent_cases() {
     assert_eq!(cubes_of(sphere(0, [2.5; 3], 0.25, &grid), grid), 1);
     // A big sphere registers its shell, not its solid interior.
     let big = cubes_of(sphere(0, [4.0; 3], 3.5, &grid), grid);
-    assert!(
-        big < 8 * 8 * 8 && big > 6 * 6 * 6 - 4 * 4 * 4,
-        "shell cubes: {big}"
-    );
+    assert!(big < 8 * 8 * 8 && big > 6 * 6 * 6 - 4 * 4 * 4, "shell cubes: {big}");
     // Sphere larger than the grid: only the cubes its surface meets.
     assert_eq!(cubes_of(sphere(0, [4.0; 3], 64.0, &grid), grid), 0);
 }
@@ -65,10 +54,7 @@ fn trace<const S: usize, const R: usize, const C: usize>(
     let mut walk = DigitalLine::enter(line, grid).unwrap();
     let mut best = None;
     let mut stats = TraceStats::default();
-    (
-        r.trace(line, &mut walk, &mut best, query, &mut stats),
-        stats,
-    )
+    (r.trace(line, &mut walk, &mut best, query, &mut stats), stats)
 }
 
 #[test]
@@ -123,10 +109,7 @@ fn equal_depths_resolve_to_the_lowest_id() {
         }
         let line = quantise::line([0.5, 4.5, 4.5], [1.0, 0.0, 0.0]);
         let (out, _) = trace(&mut r, &line, &grid, &Query::default());
-        assert!(
-            matches!(out, Outcome::Hit(h) if h.sphere == 3),
-            "{order:?}: {out:?}"
-        );
+        assert!(matches!(out, Outcome::Hit(h) if h.sphere == 3), "{order:?}: {out:?}");
     }
 }
 
@@ -134,14 +117,7 @@ fn equal_depths_resolve_to_the_lowest_id() {
 fn capacity_overflow_hands_the_sphere_back() {
     let grid = Grid::new([8; 3]).unwrap();
     let mut r: Box<Subregion<2, 64, 512>> = Box::new(Subregion::new());
-    r.assign(
-        grid,
-        CubeBox {
-            lo: [0; 3],
-            hi: [8; 3],
-        },
-    )
-    .unwrap();
+    r.assign(grid, CubeBox { lo: [0; 3], hi: [8; 3] }).unwrap();
     assert_eq!(r.insert(sphere(1, [1.5; 3], 0.2, &grid)), Ok(true));
     assert_eq!(r.insert(sphere(2, [2.5; 3], 0.2, &grid)), Ok(true));
     let third = sphere(3, [3.5; 3], 0.2, &grid);
@@ -150,45 +126,16 @@ fn capacity_overflow_hands_the_sphere_back() {
     assert_eq!(rejected.error, Error::SphereCapacity { capacity: 2 });
     // References: a radius-2 sphere meets far more than 64 cubes.
     let mut r: Box<Subregion<8, 64, 512>> = Box::new(Subregion::new());
-    r.assign(
-        grid,
-        CubeBox {
-            lo: [0; 3],
-            hi: [8; 3],
-        },
-    )
-    .unwrap();
+    r.assign(grid, CubeBox { lo: [0; 3], hi: [8; 3] }).unwrap();
     let big = sphere(4, [4.0; 3], 2.0, &grid);
     let rejected = r.insert(big).unwrap_err();
     assert!(matches!(rejected.error, Error::RefCapacity { capacity: 64, needed } if needed > 64));
     assert_eq!(r.spheres().len(), 0, "nothing half-stored");
     // Cubes: a box larger than the node holds.
-    let err = r
-        .assign(
-            grid,
-            CubeBox {
-                lo: [0; 3],
-                hi: [8, 8, 9],
-            },
-        )
-        .unwrap_err();
+    let err = r.assign(grid, CubeBox { lo: [0; 3], hi: [8, 8, 9] }).unwrap_err();
     assert_eq!(err, Error::OutOfRange(node_fw::Field::Subregion));
-    let err = Subregion::<8, 64, 100>::new()
-        .assign(
-            grid,
-            CubeBox {
-                lo: [0; 3],
-                hi: [8; 3],
-            },
-        )
-        .unwrap_err();
-    assert_eq!(
-        err,
-        Error::CubeCapacity {
-            capacity: 100,
-            needed: 512
-        }
-    );
+    let err = Subregion::<8, 64, 100>::new().assign(grid, CubeBox { lo: [0; 3], hi: [8; 3] }).unwrap_err();
+    assert_eq!(err, Error::CubeCapacity { capacity: 100, needed: 512 });
     // A sphere that does not touch the box is not ours, and not an error.
     let mut r = region(grid, [0; 3], [4, 8, 8]);
     assert_eq!(r.insert(sphere(5, [6.5; 3], 0.5, &grid)), Ok(false));
@@ -198,25 +145,14 @@ fn capacity_overflow_hands_the_sphere_back() {
 fn ten_thousand_spheres_in_one_cube() {
     let grid = Grid::new([2; 3]).unwrap();
     let mut r: Box<Subregion<10_000, 10_000, 8>> = Box::new(Subregion::new());
-    r.assign(
-        grid,
-        CubeBox {
-            lo: [0; 3],
-            hi: [1; 3],
-        },
-    )
-    .unwrap();
+    r.assign(grid, CubeBox { lo: [0; 3], hi: [1; 3] }).unwrap();
     let mut rng = SmallRng::seed_from_u64(3);
     let mut spheres = Vec::new();
     for id in 0..10_000u16 {
         // Pairs share a centre and radius: equal depths.
         let k = id / 2;
         let mut local = SmallRng::seed_from_u64(k as u64);
-        let c = [
-            local.gen_range(0.3..0.7),
-            local.gen_range(0.3..0.7),
-            local.gen_range(0.3..0.7),
-        ];
+        let c = [local.gen_range(0.3..0.7), local.gen_range(0.3..0.7), local.gen_range(0.3..0.7)];
         let s = sphere(id, c, 0.01 + local.gen_range(0.0..0.2), &grid);
         spheres.push(s);
     }
@@ -231,9 +167,7 @@ fn ten_thousand_spheres_in_one_cube() {
     let (out, stats) = trace(&mut r, &line, &grid, &Query::default());
     assert_eq!(stats.sphere_tests, 10_000);
     let want = brute_force(&spheres, &line);
-    let Outcome::Hit(h) = out else {
-        panic!("{out:?}")
-    };
+    let Outcome::Hit(h) = out else { panic!("{out:?}") };
     assert_eq!(h.sphere, want.unwrap().1);
     assert_eq!(h.sphere % 2, 0, "the lower id of an equal pair");
 }
@@ -243,8 +177,7 @@ fn brute_force(spheres: &[Sphere], line: &Line) -> Option<(f64, u16)> {
     spheres
         .iter()
         .filter_map(|s| {
-            exact_hit(line.origin(), line.dir(), s.center(), s.radius().to_bits())
-                .map(|h| (h.t, s.id()))
+            exact_hit(line.origin(), line.dir(), s.center(), s.radius().to_bits()).map(|h| (h.t, s.id()))
         })
         .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
 }
@@ -254,20 +187,13 @@ fn runner_up(spheres: &[Sphere], line: &Line, best: u16) -> Option<f64> {
     spheres
         .iter()
         .filter(|s| s.id() != best)
-        .filter_map(|s| {
-            exact_hit(line.origin(), line.dir(), s.center(), s.radius().to_bits()).map(|h| h.t)
-        })
+        .filter_map(|s| exact_hit(line.origin(), line.dir(), s.center(), s.radius().to_bits()).map(|h| h.t))
         .min_by(f64::total_cmp)
 }
 
 /// Walks a ray through a set of subregions, passing it on at each `Leave`,
 /// carrying the best hit: what the array of nodes does.
-fn trace_partitioned(
-    regions: &mut [Box<Region>],
-    line: &Line,
-    grid: &Grid,
-    query: &Query,
-) -> (Outcome, u32) {
+fn trace_partitioned(regions: &mut [Box<Region>], line: &Line, grid: &Grid, query: &Query) -> (Outcome, u32) {
     let Some(mut walk) = DigitalLine::enter(line, grid) else {
         return (Outcome::LeftGrid, 0);
     };
@@ -275,10 +201,8 @@ fn trace_partitioned(
     let mut stats = TraceStats::default();
     let mut hops = 0;
     loop {
-        let owner = regions
-            .iter_mut()
-            .find(|r| r.contains(walk.cell()))
-            .expect("a subregion owns every cube");
+        let owner =
+            regions.iter_mut().find(|r| r.contains(walk.cell())).expect("a subregion owns every cube");
         // Resume from (origin, dir, cell) as a receiving node would.
         let mut resumed = DigitalLine::resume(line, walk.cell()).unwrap();
         match owner.trace(line, &mut resumed, &mut best, query, &mut stats) {
@@ -311,26 +235,14 @@ fn nearest_hit_matches_brute_force_on_one_and_many_subregions() {
         for z in 0..2 {
             for y in 0..2 {
                 for x in 0..3 {
-                    parts.push(region(
-                        grid,
-                        [xs[x], ys[y], zs[z]],
-                        [xs[x + 1], ys[y + 1], zs[z + 1]],
-                    ));
+                    parts.push(region(grid, [xs[x], ys[y], zs[z]], [xs[x + 1], ys[y + 1], zs[z + 1]]));
                 }
             }
         }
         for s in &spheres {
             assert_eq!(whole.insert(*s), Ok(true));
-            let kept = parts
-                .iter_mut()
-                .map(|p| p.insert(*s).unwrap())
-                .filter(|&k| k)
-                .count();
-            assert!(
-                kept >= 1,
-                "scene {scene}: sphere {} kept by no subregion",
-                s.id()
-            );
+            let kept = parts.iter_mut().map(|p| p.insert(*s).unwrap()).filter(|&k| k).count();
+            assert!(kept >= 1, "scene {scene}: sphere {} kept by no subregion", s.id());
         }
         for _ in 0..300 {
             let origin = [(); 3].map(|_| rng.gen_range(-20.0..36.0));
@@ -381,27 +293,12 @@ fn secondary_rays_ignore_their_own_sphere() {
     // `ignore`, the rounded origin may lie inside and hit sphere 2 again.
     let origin = [4.0, 4.0, 5.5 - 1.0 / 65536.0];
     let line = quantise::line(origin, [0.0, 0.0, 1.0]);
-    let (out, _) = trace(
-        &mut r,
-        &line,
-        &grid,
-        &Query {
-            ignore: Some(2),
-            ..Query::default()
-        },
-    );
+    let (out, _) = trace(&mut r, &line, &grid, &Query { ignore: Some(2), ..Query::default() });
     assert!(matches!(out, Outcome::Hit(h) if h.sphere == 3), "{out:?}");
     let (out, _) = trace(&mut r, &line, &grid, &Query::default());
-    assert!(
-        matches!(out, Outcome::Hit(h) if h.sphere == 2),
-        "self-hit shows without ignore: {out:?}"
-    );
+    assert!(matches!(out, Outcome::Hit(h) if h.sphere == 2), "self-hit shows without ignore: {out:?}");
     // Shadow ray toward a light below sphere 3: clear; beyond it: blocked.
-    let q = |t: f64| Query {
-        ignore: Some(2),
-        t_max: Some(I16F16::from_num(t)),
-        any_hit: true,
-    };
+    let q = |t: f64| Query { ignore: Some(2), t_max: Some(I16F16::from_num(t)), any_hit: true };
     assert_eq!(trace(&mut r, &line, &grid, &q(0.5)).0, Outcome::Clear);
     assert_eq!(trace(&mut r, &line, &grid, &q(2.0)).0, Outcome::Blocked);
 }
