@@ -57,6 +57,19 @@ pub enum Message {
     Ack(u16),
     /// Link layer: frame `seq` was lost or corrupted; send again from it.
     Nak(u16),
+    /// Node to node: a [`RayMsg`] was admitted or refused (the sender keeps it until admitted).
+    RayReply(RayReply),
+    /// Node to node: a pool slot freed; retry rays this node refused.
+    Space,
+}
+
+/// Answer to a ray passed over a link.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct RayReply {
+    /// The [`RayMsg::tag`] of the ray.
+    pub tag: u16,
+    /// Admitted into the receiver's pool; if false the sender retries after [`Message::Space`].
+    pub accepted: bool,
 }
 
 /// Version handshake and the capacities a node was built with.
@@ -198,6 +211,8 @@ pub struct RenderStart {
     pub tile: [u16; 4],
     /// Credit of one initial ray (see [`Retire::credit`]).
     pub credit: u64,
+    /// Pool slots per ray class level (the deadlock-free buffer pool's depth).
+    pub level_depth: u16,
 }
 
 /// What a ray is for.
@@ -246,6 +261,10 @@ pub struct RayMsg {
     pub best: Option<HitMsg>,
     /// Largest ray parameter of interest (shadow rays: the light), Q16.16.
     pub t_max: Option<i32>,
+    /// Buffer class: rises by one with every hop and every spawn (bounds deadlock-free pools).
+    pub class: u16,
+    /// Sender's handle for the [`RayReply`].
+    pub tag: u16,
 }
 
 /// A ray ended. Contributions are integers, so their sum is independent of order.
@@ -347,6 +366,10 @@ pub enum ErrorCode {
     BadRay,
     /// The scene counts in `SceneEnd` disagree with what arrived (`a` = expected, `b` = got).
     SceneCount,
+    /// The ray pool cannot hold one slot per class level (`a` = capacity, `b` = needed).
+    PoolCapacity,
+    /// A ray's class exceeded the bound the pool was sized for (`a` = class).
+    ClassOverflow,
 }
 
 /// A node's error, sent to the host. Firmware never panics on input.

@@ -45,6 +45,8 @@ fn arb_ray() -> impl Strategy<Value = RayMsg> {
                 ignore,
                 best: best.map(|(t, sphere)| HitMsg { t, sphere }),
                 t_max,
+                class: credit as u16,
+                tag: pixel as u16,
             },
         )
 }
@@ -60,6 +62,8 @@ fn arb_error_code() -> impl Strategy<Value = ErrorCode> {
         Just(ErrorCode::OutOfRange),
         Just(ErrorCode::BadRay),
         Just(ErrorCode::SceneCount),
+        Just(ErrorCode::PoolCapacity),
+        Just(ErrorCode::ClassOverflow),
     ]
 }
 
@@ -105,6 +109,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 initial: if eye { InitialRays::EyeNode } else { InitialRays::Parallel },
                 tile,
                 credit,
+                level_depth: frame as u16,
             })
         ),
         arb_ray().prop_map(Message::Ray),
@@ -140,6 +145,9 @@ fn arb_message() -> impl Strategy<Value = Message> {
             .prop_map(|(node, code, a, b)| Message::Error(ErrorReport { node, code, a, b })),
         any::<u16>().prop_map(Message::Ack),
         any::<u16>().prop_map(Message::Nak),
+        (any::<u16>(), any::<bool>())
+            .prop_map(|(tag, accepted)| Message::RayReply(RayReply { tag, accepted })),
+        Just(Message::Space),
     ]
 }
 
@@ -234,6 +242,8 @@ fn largest_message_fits_the_frame_buffer() {
         ignore: Some(u16::MAX),
         best: Some(HitMsg { t: i32::MIN, sphere: u16::MAX }),
         t_max: Some(i32::MIN),
+        class: u16::MAX,
+        tag: u16::MAX,
     };
     let frame = Frame { seq: u16::MAX, msg: Message::Ray(ray) };
     let bytes = encode(&frame);

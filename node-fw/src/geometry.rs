@@ -169,3 +169,9 @@ impl Line {
         p
     }
 }
+
+/// Component-wise `f(a_i, b_i)` of two 3-vectors (no indexing, no panic path).
+pub fn zip3<A: Copy, B: Copy, T>(a: [A; 3], b: [B; 3], f: impl Fn(A, B) -> T) -> [T; 3] {
+    let ([a0, a1, a2], [b0, b1, b2]) = (a, b);
+    [f(a0, b0), f(a1, b1), f(a2, b2)]
+}

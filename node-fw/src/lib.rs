@@ -14,11 +14,17 @@
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
+pub mod camera;
 pub mod cube_box;
 pub mod digital_line;
 pub mod error;
 pub mod geometry;
 pub mod limits;
+pub mod link;
+pub mod node;
+pub mod pool;
+pub mod route;
+pub mod shading;
 pub mod sphere;
 pub mod subregion;
 
@@ -26,5 +32,7 @@ pub use cube_box::CubeBox;
 pub use digital_line::DigitalLine;
 pub use error::{Error, Field};
 pub use geometry::{Direction, Grid, Line, Point};
+pub use link::{Links, Port};
+pub use node::{LoadMeter, Node, Totals, Work};
 pub use sphere::{Hit, Material, Root, Sphere};
 pub use subregion::{Outcome, Query, Rejected, Subregion, TraceStats};

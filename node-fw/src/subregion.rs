@@ -156,6 +156,12 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         &self.spheres
     }
 
+    /// The kept sphere with scene id `id`.
+    pub fn sphere(&self, id: u16) -> Option<&Sphere> {
+        let at = self.spheres.binary_search_by_key(&id, Sphere::id).ok()?;
+        self.spheres.get(at)
+    }
+
     /// Sphere references over all cubes.
     pub fn ref_count(&self) -> usize {
         self.ref_total
@@ -184,8 +190,12 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
                 Error::RefCapacity { capacity: R as u32, needed: u32::try_from(total).unwrap_or(u32::MAX) };
             return Err(Rejected { sphere, error });
         }
+        // Kept sorted by id, so a hit's sphere is found by binary search.
+        let at = match self.spheres.binary_search_by_key(&sphere.id(), Sphere::id) {
+            Ok(at) | Err(at) => at,
+        };
         self.spheres
-            .push(sphere)
+            .insert(at, sphere)
             .map_err(|sphere| Rejected { sphere, error: Error::SphereCapacity { capacity: S as u32 } })?;
         self.ref_total = total;
         self.indexed = false;

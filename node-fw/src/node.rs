@@ -1,0 +1,684 @@
+//! The node: a sans-IO state machine over [`Links`].
+//!
+//! The caller passes the time and the links in ([`Node::poll`]); the node never
+//! reads a clock, so the in-memory board, emulated boards and real boards all
+//! run this same code, and tests are deterministic.
+//!
+//! Conversation: the host sends `SceneBegin`, `Assign`, every `Sphere` and
+//! `Light`, `SceneEnd`, then `RenderStart`. The node creates the initial rays of
+//! its tile, traces rays through its subregion, passes rays on to neighbours
+//! with their exact state, shades hits, and retires finished rays to the host
+//! with their pixel contribution and credit. `Finish` ends the frame; the node
+//! answers with its load report.
+//!
+//! **Passing a ray on** never blocks a receiver: a node always takes a ray off
+//! the link and admits it into its pool or refuses it ([`RayReply`]). The sender
+//! keeps the ray until it is admitted and retries after the receiver's
+//! [`Message::Space`]. With the class-levelled pool ([`crate::pool`]) this is
+//! deadlock-free and loses nothing, whatever the queue depths.
+
+use heapless::{Deque, Vec};
+use link_proto::{
+    Assign, Capacity, ErrorCode, ErrorReport, Hello, HitMsg, LightMsg, LoadReport, Message, PROTOCOL_VERSION,
+    RayKind, RayMsg, RayReply, RenderStart, Retire, SceneHeader, SphereMsg,
+};
+
+use crate::camera::primary_line;
+use crate::cube_box::CubeBox;
+use crate::digital_line::DigitalLine;
+use crate::error::Error;
+use crate::geometry::{Direction, Grid, Line, Point};
+use crate::limits::Scalar;
+use crate::link::{Links, Port};
+use crate::pool::{RayPool, Stage, class_bound};
+use crate::route;
+use crate::shading::{Child, Q15_ONE, Scene, Surface};
+use crate::sphere::{Hit, Material, Sphere};
+use crate::subregion::{Outcome, Query, Subregion, TraceStats};
+
+/// Lights a node holds.
+pub const MAX_LIGHTS: usize = 8;
+/// Rays a node may have sent to one neighbour without a reply yet.
+pub const MAX_OUTSTANDING: usize = 4;
+
+/// Work done in one [`Node::poll`], for a cost model or a profiler.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Work {
+    /// Unit-cube steps.
+    pub cube_steps: u32,
+    /// Ray/sphere tests.
+    pub sphere_tests: u32,
+    /// Ray walks through the subregion.
+    pub traces: u32,
+    /// Hits shaded (children evaluated).
+    pub shades: u32,
+    /// Initial rays created.
+    pub created: u32,
+    /// Messages received.
+    pub received: u32,
+    /// Messages sent.
+    pub sent: u32,
+}
+
+impl Work {
+    /// Whether anything was done.
+    pub fn is_busy(&self) -> bool {
+        *self != Work::default()
+    }
+}
+
+/// Running and waiting time, attributed from one poll to the next.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LoadMeter {
+    last: u64,
+    busy: bool,
+    /// Time spent processing.
+    pub running: u64,
+    /// Time spent with nothing to process.
+    pub waiting: u64,
+}
+
+impl LoadMeter {
+    fn tick(&mut self, now: u64) {
+        let dt = now.saturating_sub(self.last);
+        if self.busy {
+            self.running += dt;
+        } else {
+            self.waiting += dt;
+        }
+        self.last = now;
+    }
+
+    fn restart(&mut self, now: u64) {
+        *self = LoadMeter { last: now, ..LoadMeter::default() };
+    }
+}
+
+/// Totals of the current frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Totals {
+    /// Rays traced (walks through this subregion).
+    pub rays: u32,
+    /// Ray/sphere tests.
+    pub sphere_tests: u32,
+    /// Cube steps.
+    pub cube_steps: u32,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    /// Waiting for a scene.
+    Idle,
+    /// Receiving a scene.
+    Loading,
+    /// Scene loaded, waiting for `RenderStart`.
+    Loaded,
+    /// Rendering a frame.
+    Rendering,
+    /// Stopped after reporting an error.
+    Failed,
+}
+
+/// A node with `S` spheres, `R` sphere references, `C` cubes and `P` ray slots.
+pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> {
+    id: u16,
+    phase: Phase,
+    header: SceneHeader,
+    grid: Grid,
+    assign: Option<Assign>,
+    region: Subregion<S, R, C>,
+    lights: Vec<LightMsg, MAX_LIGHTS>,
+    spheres_seen: u32,
+    render: Option<RenderStart>,
+    cursor: u32,
+    pool: RayPool<P>,
+    outstanding: [u8; 6],
+    replies: [Deque<RayReply, MAX_OUTSTANDING>; 6],
+    refused: [bool; 6],
+    space_due: [bool; 6],
+    hello_due: bool,
+    error_due: Option<ErrorReport>,
+    load_due: Option<u32>,
+    meter: LoadMeter,
+    totals: Totals,
+}
+
+const NO_HEADER: SceneHeader =
+    SceneHeader { grid: [1; 3], ambient: [0; 3], background: [0; 3], max_depth: 0 };
+
+impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+    /// A node with index `id` (row-major over the array), waiting for a scene.
+    pub const fn new(id: u16) -> Self {
+        Self {
+            id,
+            phase: Phase::Idle,
+            header: NO_HEADER,
+            grid: Grid::UNIT,
+            assign: None,
+            region: Subregion::new(),
+            lights: Vec::new(),
+            spheres_seen: 0,
+            render: None,
+            cursor: 0,
+            pool: RayPool::new(),
+            outstanding: [0; 6],
+            replies: [const { Deque::new() }; 6],
+            refused: [false; 6],
+            space_due: [false; 6],
+            hello_due: true,
+            error_due: None,
+            load_due: None,
+            meter: LoadMeter { last: 0, busy: false, running: 0, waiting: 0 },
+            totals: Totals { rays: 0, sphere_tests: 0, cube_steps: 0 },
+        }
+    }
+
+    /// The capacities this node was built with.
+    pub const fn capacity() -> Capacity {
+        Capacity { spheres: S as u32, refs: R as u32, cubes: C as u32, rays: P as u16 }
+    }
+
+    /// Node index.
+    pub fn id(&self) -> u16 {
+        self.id
+    }
+
+    /// The subregion (for inspection and tests).
+    pub fn region(&self) -> &Subregion<S, R, C> {
+        &self.region
+    }
+
+    /// Running and waiting time of the current frame.
+    pub fn meter(&self) -> LoadMeter {
+        self.meter
+    }
+
+    /// Work totals of the current frame.
+    pub fn totals(&self) -> Totals {
+        self.totals
+    }
+
+    /// Whether the node stopped after an error.
+    pub fn failed(&self) -> bool {
+        self.phase == Phase::Failed
+    }
+
+    /// Whether the node holds anything to do or send: rays, initial rays not yet
+    /// created, replies, notices or reports. An idle node only waits for input.
+    pub fn pending(&self) -> bool {
+        !self.pool.is_empty()
+            || self.creation_left()
+            || self.hello_due
+            || self.error_due.is_some()
+            || self.load_due.is_some()
+            || self.space_due.iter().any(|&s| s)
+            || self.replies.iter().any(|q| !q.is_empty())
+    }
+
+    /// Handles what has arrived, does one unit of work, and sends what it can.
+    /// `now` is the caller's clock; it only splits time into running and waiting.
+    pub fn poll<L: Links>(&mut self, now: u64, links: &mut L) -> Work {
+        self.meter.tick(now);
+        let mut work = Work::default();
+        self.receive(links, &mut work);
+        if self.phase == Phase::Rendering {
+            self.compute(&mut work);
+        }
+        self.transmit(links, &mut work);
+        self.meter.busy = work.is_busy();
+        work
+    }
+
+    fn receive<L: Links>(&mut self, links: &mut L, work: &mut Work) {
+        for port in Port::ALL {
+            while let Some(msg) = links.recv(port) {
+                work.received += 1;
+                if self.phase != Phase::Failed {
+                    self.handle(port, msg);
+                }
+            }
+        }
+    }
+
+    fn fail(&mut self, code: ErrorCode, a: u32, b: u32) {
+        if self.phase != Phase::Failed {
+            self.error_due = Some(ErrorReport { node: self.id, code, a, b });
+            self.phase = Phase::Failed;
+        }
+    }
+
+    fn fail_with(&mut self, error: Error) {
+        let r = error.report(self.id);
+        self.fail(r.code, r.a, r.b);
+    }
+
+    fn handle(&mut self, port: Port, msg: Message) {
+        match (port, msg) {
+            (_, Message::Hello(h)) if h.version != PROTOCOL_VERSION => {
+                self.fail(ErrorCode::Version, u32::from(h.version), u32::from(PROTOCOL_VERSION))
+            }
+            (_, Message::Hello(_)) => {}
+            (Port::Host, Message::SceneBegin(header)) => self.begin_scene(header),
+            (Port::Host, Message::Assign(a)) => self.take_assignment(a),
+            (Port::Host, Message::Sphere(s)) => self.take_sphere(s),
+            (Port::Host, Message::Light(l)) => self.take_light(l),
+            (Port::Host, Message::SceneEnd(end)) => self.end_scene(end.spheres, end.lights),
+            (Port::Host, Message::RenderStart(r)) => self.start_render(r),
+            (Port::Host, Message::Finish(f)) => self.load_due = Some(f.frame),
+            (p, Message::Ray(ray)) if p != Port::Host => self.admit_ray(p, ray),
+            (p, Message::RayReply(r)) if p != Port::Host => self.take_reply(p, r),
+            (p, Message::Space) if p != Port::Host => self.retry_refused(p),
+            _ => self.fail(ErrorCode::Unexpected, port as u32, 0),
+        }
+    }
+
+    fn begin_scene(&mut self, header: SceneHeader) {
+        match Grid::new(header.grid) {
+            Ok(grid) => {
+                self.header = header;
+                self.grid = grid;
+                self.assign = None;
+                self.region.clear();
+                self.lights.clear();
+                self.spheres_seen = 0;
+                self.render = None;
+                self.pool.clear();
+                self.phase = Phase::Loading;
+            }
+            Err(e) => self.fail_with(e),
+        }
+    }
+
+    fn take_assignment(&mut self, a: Assign) {
+        if self.phase != Phase::Loading || a.driving_axis > 2 {
+            return self.fail(ErrorCode::Unexpected, 0, 0);
+        }
+        match self.region.assign(self.grid, CubeBox { lo: a.lo, hi: a.hi }) {
+            Ok(()) => self.assign = Some(a),
+            Err(e) => self.fail_with(e),
+        }
+    }
+
+    fn take_sphere(&mut self, s: SphereMsg) {
+        if self.phase != Phase::Loading || self.assign.is_none() {
+            return self.fail(ErrorCode::Unexpected, 0, 0);
+        }
+        self.spheres_seen += 1;
+        let m = s.material;
+        let material = Material {
+            color: m.color,
+            ambient: m.ambient,
+            diffuse: m.diffuse,
+            specular: m.specular,
+            shininess: m.shininess,
+            reflect: m.reflect,
+        };
+        let sphere = Point::from_bits(s.center)
+            .and_then(|c| Sphere::new(s.id, c, Scalar::from_bits(s.radius), material, &self.grid));
+        match sphere.map(|sphere| self.region.insert(sphere)) {
+            Ok(Ok(_)) => {}
+            Ok(Err(rejected)) => self.fail_with(rejected.error),
+            Err(e) => self.fail_with(e),
+        }
+    }
+
+    fn take_light(&mut self, l: LightMsg) {
+        if self.phase != Phase::Loading {
+            return self.fail(ErrorCode::Unexpected, 0, 0);
+        }
+        if Point::from_bits(l.position).is_err() {
+            return self.fail(ErrorCode::OutOfRange, crate::error::Field::Origin as u32, 0);
+        }
+        if self.lights.push(l).is_err() {
+            self.fail(ErrorCode::OutOfRange, MAX_LIGHTS as u32, 0);
+        }
+    }
+
+    fn end_scene(&mut self, spheres: u32, lights: u8) {
+        if self.phase != Phase::Loading || self.assign.is_none() {
+            return self.fail(ErrorCode::Unexpected, 0, 0);
+        }
+        if spheres != self.spheres_seen {
+            return self.fail(ErrorCode::SceneCount, spheres, self.spheres_seen);
+        }
+        if usize::from(lights) != self.lights.len() {
+            return self.fail(ErrorCode::SceneCount, u32::from(lights), self.lights.len() as u32);
+        }
+        self.phase = Phase::Loaded;
+    }
+
+    fn start_render(&mut self, r: RenderStart) {
+        let Some(assign) = self.assign.filter(|_| self.phase == Phase::Loaded) else {
+            return self.fail(ErrorCode::Unexpected, 0, 0);
+        };
+        let top = class_bound(assign.array, self.header.max_depth, 0);
+        if let Err(e) = self.pool.configure(top, r.level_depth) {
+            return self.fail(ErrorCode::PoolCapacity, e.capacity, e.needed);
+        }
+        self.render = Some(r);
+        self.cursor = 0;
+        self.outstanding = [0; 6];
+        self.totals = Totals::default();
+        self.meter.restart(self.meter.last);
+        self.phase = Phase::Rendering;
+    }
+
+    fn admit_ray(&mut self, port: Port, ray: RayMsg) {
+        if self.phase != Phase::Rendering {
+            return self.fail(ErrorCode::Unexpected, port as u32, 0);
+        }
+        if ray.class > self.pool.top() {
+            return self.fail(ErrorCode::ClassOverflow, u32::from(ray.class), u32::from(self.pool.top()));
+        }
+        let accepted = self.pool.admit(ray, Stage::Trace).is_ok();
+        let reply = RayReply { tag: ray.tag, accepted };
+        let (Some(queue), Some(refused)) =
+            (self.replies.get_mut(port.index()), self.refused.get_mut(port.index()))
+        else {
+            return;
+        };
+        *refused |= !accepted;
+        if queue.push_back(reply).is_err() {
+            // The neighbour exceeded MAX_OUTSTANDING: a protocol violation.
+            self.fail(ErrorCode::Unexpected, port as u32, 1);
+        }
+    }
+
+    fn take_reply(&mut self, port: Port, reply: RayReply) {
+        let sent = self.pool.get(reply.tag).is_some_and(|s| s.stage == Stage::Sent(port));
+        if !sent {
+            return self.fail(ErrorCode::Unexpected, port as u32, 2);
+        }
+        if let Some(n) = self.outstanding.get_mut(port.index()) {
+            *n = n.saturating_sub(1);
+        }
+        if reply.accepted {
+            self.pool.remove(reply.tag);
+            self.slot_freed();
+        } else if let Some(slot) = self.pool.get_mut(reply.tag) {
+            slot.stage = Stage::Refused(port);
+        }
+    }
+
+    fn retry_refused(&mut self, port: Port) {
+        for i in 0..self.pool.capacity() {
+            if let Some(slot) = self.pool.get_mut(i).filter(|s| s.stage == Stage::Refused(port)) {
+                slot.stage = Stage::Outbound(port);
+            }
+        }
+    }
+
+    /// A slot freed: tell every neighbour we refused that it may retry.
+    fn slot_freed(&mut self) {
+        for (refused, due) in self.refused.iter_mut().zip(self.space_due.iter_mut()) {
+            if *refused {
+                *due = true;
+                *refused = false;
+            }
+        }
+    }
+
+    fn creation_left(&self) -> bool {
+        self.phase == Phase::Rendering && self.render.is_some_and(|r| self.cursor < tile_pixels(&r.tile))
+    }
+
+    fn compute(&mut self, work: &mut Work) {
+        let ready = self.pool.next_work_where(|slot| match slot.stage {
+            Stage::Trace => true,
+            Stage::Shade { .. } => self.pool.can_admit(slot.ray.class.saturating_add(1)),
+            _ => false,
+        });
+        if let Some(i) = ready {
+            match self.pool.get(i).map(|s| s.stage) {
+                Some(Stage::Trace) => self.trace(i, work),
+                Some(Stage::Shade { .. }) => self.shade(i, work),
+                _ => {}
+            }
+        } else if self.creation_left() && self.pool.can_admit(0) {
+            self.create_initial(work);
+        }
+    }
+
+    fn scene(&self) -> Scene<'_> {
+        Scene { header: &self.header, grid: &self.grid, lights: &self.lights }
+    }
+
+    fn line_of(ray: &RayMsg) -> Result<Line, Error> {
+        Ok(Line::new(Point::from_bits(ray.origin)?, Direction::from_bits(ray.dir)?))
+    }
+
+    fn trace(&mut self, i: u16, work: &mut Work) {
+        let Some(mut ray) = self.pool.get(i).map(|s| s.ray) else { return };
+        let line = match Self::line_of(&ray) {
+            Ok(line) => line,
+            Err(_) => return self.fail(ErrorCode::BadRay, ray.pixel, 0),
+        };
+        let Ok(mut walk) = DigitalLine::resume(&line, ray.cell.map(i32::from)) else {
+            return self.fail(ErrorCode::BadRay, ray.pixel, 1);
+        };
+        let mut best = ray.best.map(|h| Hit { t: Scalar::from_bits(h.t), sphere: h.sphere });
+        let query = Query {
+            ignore: ray.ignore,
+            t_max: ray.t_max.map(Scalar::from_bits),
+            any_hit: ray.kind == RayKind::Shadow,
+        };
+        let mut stats = TraceStats::default();
+        let outcome = self.region.trace(&line, &mut walk, &mut best, &query, &mut stats);
+        work.traces += 1;
+        work.cube_steps += stats.cube_steps;
+        work.sphere_tests += stats.sphere_tests;
+        self.totals.rays += 1;
+        self.totals.cube_steps += stats.cube_steps;
+        self.totals.sphere_tests += stats.sphere_tests;
+        let stage = match outcome {
+            Outcome::Leave => {
+                ray.cell = walk.cell().map(|c| c as u16);
+                ray.best = best.map(|h| HitMsg { t: h.t.to_bits(), sphere: h.sphere });
+                let driving = self.assign.map_or(0, |a| usize::from(a.driving_axis));
+                match route::toward(&self.region.bounds(), walk.cell(), driving) {
+                    Some(port) => Stage::Outbound(port),
+                    None => return self.fail(ErrorCode::BadRay, ray.pixel, 2),
+                }
+            }
+            Outcome::LeftGrid | Outcome::Clear => {
+                let rgb =
+                    if ray.kind == RayKind::Shadow { ray.weight } else { self.scene().background(&ray) };
+                Stage::Retire(retire(&ray, rgb, ray.credit, 0))
+            }
+            Outcome::Blocked => Stage::Retire(retire(&ray, [0; 3], ray.credit, 0)),
+            Outcome::Hit(hit) => match self.begin_shading(&ray, &line, hit) {
+                Some(stage) => stage,
+                None => return self.fail(ErrorCode::BadRay, ray.pixel, 3),
+            },
+        };
+        if let Some(slot) = self.pool.get_mut(i) {
+            slot.ray = ray;
+            slot.stage = stage;
+        }
+    }
+
+    /// Counts the children of a hit and folds the ambient term and any child
+    /// resolved at once into the parent's contribution.
+    fn begin_shading(&self, ray: &RayMsg, line: &Line, hit: Hit) -> Option<Stage> {
+        let sphere = self.region.sphere(hit.sphere)?;
+        let surface = Surface::at(line, hit.t, sphere)?;
+        let scene = self.scene();
+        let mut rgb = scene.ambient(ray, sphere);
+        let mut children = 0u8;
+        for k in 0..scene.candidates() {
+            match scene.child(ray, line, &surface, sphere, k) {
+                Some(Child::Ray(_)) => children += 1,
+                Some(Child::Done(c)) => rgb = add3(rgb, c),
+                None => {}
+            }
+        }
+        let hit = HitMsg { t: hit.t.to_bits(), sphere: hit.sphere };
+        if children == 0 {
+            return Some(Stage::Retire(retire(ray, rgb, ray.credit, 0)));
+        }
+        let share = ray.credit / (u64::from(children) + 1);
+        Some(Stage::Shade { hit, next: 0, children, share, rgb })
+    }
+
+    /// Spawns the hit's children while the pool admits them; retires the parent
+    /// once all are out.
+    fn shade(&mut self, i: u16, work: &mut Work) {
+        let Some(slot) = self.pool.get(i).copied() else { return };
+        let Stage::Shade { hit, mut next, children, share, rgb } = slot.stage else { return };
+        let ray = slot.ray;
+        let Ok(line) = Self::line_of(&ray) else { return self.fail(ErrorCode::BadRay, ray.pixel, 4) };
+        let Some(sphere) = self.region.sphere(hit.sphere).copied() else {
+            return self.fail(ErrorCode::BadRay, ray.pixel, 5);
+        };
+        let Some(surface) = Surface::at(&line, Scalar::from_bits(hit.t), &sphere) else {
+            return self.fail(ErrorCode::BadRay, ray.pixel, 6);
+        };
+        work.shades += 1;
+        let candidates = self.scene().candidates();
+        while next < candidates {
+            if let Some(Child::Ray(mut child)) = self.scene().child(&ray, &line, &surface, &sphere, next) {
+                child.credit = share;
+                if self.pool.admit(child, Stage::Trace).is_err() {
+                    break;
+                }
+            }
+            next += 1;
+        }
+        let stage = if next < candidates {
+            Stage::Shade { hit, next, children, share, rgb }
+        } else {
+            let own = ray.credit - u64::from(children) * share;
+            Stage::Retire(retire(&ray, rgb, own, children))
+        };
+        if let Some(slot) = self.pool.get_mut(i) {
+            slot.stage = stage;
+        }
+    }
+
+    fn create_initial(&mut self, work: &mut Work) {
+        let Some(r) = self.render else { return };
+        let [x0, y0, x1, _] = r.tile.map(u32::from);
+        let width = x1.saturating_sub(x0).max(1);
+        let (x, y) = (x0 + self.cursor % width, y0 + self.cursor / width);
+        self.cursor += 1;
+        work.created += 1;
+        let Ok(line) = primary_line(&r.camera, x as u16, y as u16) else {
+            return self.fail(ErrorCode::OutOfRange, crate::error::Field::Direction as u32, 0);
+        };
+        let mut ray = RayMsg {
+            origin: line.origin(),
+            dir: line.dir(),
+            cell: [0; 3],
+            pixel: y * u32::from(r.size[0]) + x,
+            weight: [Q15_ONE; 3],
+            credit: r.credit,
+            kind: RayKind::Primary,
+            depth: 0,
+            ignore: None,
+            best: None,
+            t_max: None,
+            class: 0,
+            tag: 0,
+        };
+        let stage = match DigitalLine::enter(&line, &self.grid) {
+            Some(walk) => {
+                ray.cell = walk.cell().map(|c| c as u16);
+                Stage::Trace
+            }
+            None => Stage::Retire(retire(&ray, self.scene().background(&ray), ray.credit, 0)),
+        };
+        if self.pool.admit(ray, stage).is_err() {
+            // can_admit(0) was checked: unreachable, but never lose the ray.
+            self.cursor -= 1;
+        }
+    }
+
+    fn transmit<L: Links>(&mut self, links: &mut L, work: &mut Work) {
+        let mut send = |links: &mut L, port: Port, msg: Message| {
+            let ok = links.try_send(port, msg).is_ok();
+            work.sent += u32::from(ok);
+            ok
+        };
+        if self.hello_due {
+            let hello = Hello { version: PROTOCOL_VERSION, node: self.id, capacity: Self::capacity() };
+            self.hello_due = !send(links, Port::Host, Message::Hello(hello));
+        }
+        if let Some(e) = self.error_due
+            && send(links, Port::Host, Message::Error(e))
+        {
+            self.error_due = None;
+        }
+        for port in Port::NEIGHBOURS {
+            let p = port.index();
+            while let Some(&reply) = self.replies.get(p).and_then(|q| q.front()) {
+                if !send(links, port, Message::RayReply(reply)) {
+                    break;
+                }
+                if let Some(q) = self.replies.get_mut(p) {
+                    q.pop_front();
+                }
+            }
+            if let Some(due) = self.space_due.get_mut(p).filter(|due| **due) {
+                *due = !send(links, port, Message::Space);
+            }
+        }
+        self.send_rays(links, &mut send);
+        if let Some(frame) = self.load_due {
+            let report = LoadReport {
+                node: self.id,
+                interval: frame,
+                running: self.meter.running,
+                waiting: self.meter.waiting,
+                rays: self.totals.rays,
+                sphere_tests: self.totals.sphere_tests,
+                cube_steps: self.totals.cube_steps,
+            };
+            if send(links, Port::Host, Message::Load(report)) {
+                self.load_due = None;
+            }
+        }
+    }
+
+    fn send_rays<L: Links>(&mut self, links: &mut L, send: &mut impl FnMut(&mut L, Port, Message) -> bool) {
+        for i in 0..self.pool.capacity() {
+            let Some(stage) = self.pool.get(i).map(|s| s.stage) else { continue };
+            match stage {
+                Stage::Retire(r) if send(links, Port::Host, Message::Retire(r)) => {
+                    self.pool.remove(i);
+                    self.slot_freed();
+                }
+                Stage::Outbound(port) => {
+                    let Some(out) = self.outstanding.get_mut(port.index()) else { continue };
+                    if usize::from(*out) >= MAX_OUTSTANDING {
+                        continue;
+                    }
+                    let Some(mut ray) = self.pool.get(i).map(|s| s.ray) else { continue };
+                    ray.class = ray.class.saturating_add(1);
+                    ray.tag = i;
+                    if send(links, port, Message::Ray(ray)) {
+                        if let Some(out) = self.outstanding.get_mut(port.index()) {
+                            *out += 1;
+                        }
+                        if let Some(slot) = self.pool.get_mut(i) {
+                            slot.stage = Stage::Sent(port);
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+}
+
+fn retire(ray: &RayMsg, rgb: [u32; 3], credit: u64, spawned: u8) -> Retire {
+    Retire { pixel: ray.pixel, rgb, credit, spawned }
+}
+
+fn add3(a: [u32; 3], b: [u32; 3]) -> [u32; 3] {
+    [a[0].saturating_add(b[0]), a[1].saturating_add(b[1]), a[2].saturating_add(b[2])]
+}
+
+fn tile_pixels(tile: &[u16; 4]) -> u32 {
+    let [x0, y0, x1, y1] = tile.map(u32::from);
+    x1.saturating_sub(x0) * y1.saturating_sub(y0)
+}

@@ -1,0 +1,209 @@
+//! The node's ray pool: fixed slots, admission by class, never a drop.
+//!
+//! **Deadlock freedom with tiny buffers.** Every ray carries a class that rises
+//! by one with each hop to another node and each spawn of a child, and that is
+//! bounded by `top` (see [`class_bound`]). The pool is a structured buffer pool
+//! (Merlin & Schweitzer, 1980): `top + 1` levels of `depth` slots, and a ray of
+//! class `k` may take a free slot at any level `<= k`. A ray of class `top`
+//! never needs another slot, so it always finishes; by induction on the class,
+//! so does every ray, however small `depth` is. Rays that cannot be admitted
+//! stay with their sender (see [`crate::node`]): the pool hands them back.
+
+use link_proto::{HitMsg, RayMsg, Retire};
+
+use crate::link::Port;
+
+/// Largest number of class levels a pool supports.
+pub const MAX_LEVELS: usize = 512;
+
+/// Upper bound on the class of any ray in an `array` of nodes with at most
+/// `max_depth` reflections and `forward_hops` extra hops per boundary crossing
+/// (boundary discrepancy after sliding; 0 for a static partition).
+///
+/// A ray's life: routing from its creator to its entry node (at most `h`
+/// hops), then per generation a walk (each axis is crossed monotonically, so at
+/// most `h` crossings, each possibly followed by `forward_hops` forwards) and one
+/// spawn; `max_depth` reflections plus one shadow generation.
+pub fn class_bound(array: [u16; 3], max_depth: u8, forward_hops: u16) -> u32 {
+    let h: u32 = array.iter().map(|&n| u32::from(n.max(1)) - 1).sum();
+    let walk = h * (1 + u32::from(forward_hops));
+    let generations = u32::from(max_depth) + 2;
+    h + generations * walk + generations - 1
+}
+
+/// What a pooled ray is waiting for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// To be traced through this node's subregion.
+    Trace,
+    /// Hit found; children `next..` still to spawn, each with `share` credit.
+    Shade {
+        /// The hit.
+        hit: HitMsg,
+        /// Next child candidate (lights in order, then the reflection).
+        next: u8,
+        /// Children the hit spawns in all.
+        children: u8,
+        /// Credit each child takes.
+        share: u64,
+        /// The parent's own contribution (ambient, and children resolved at once).
+        rgb: [u32; 3],
+    },
+    /// Ended; the retirement record waits for room on the host link.
+    Retire(Retire),
+    /// To be sent to the neighbour on this port.
+    Outbound(Port),
+    /// Sent; waiting for the neighbour's admission reply.
+    Sent(Port),
+    /// Refused by the neighbour; waiting for its `Space` notice.
+    Refused(Port),
+}
+
+/// One occupied slot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Slot {
+    /// The ray, in its wire form (exact state).
+    pub ray: RayMsg,
+    /// What it waits for.
+    pub stage: Stage,
+    level: u16,
+}
+
+/// Why a pool cannot be configured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PoolTooSmall {
+    /// Slots the pool has.
+    pub capacity: u32,
+    /// Slots needed for one `depth` per class level.
+    pub needed: u32,
+}
+
+/// Fixed-capacity ray pool with class levels.
+#[derive(Debug, Clone)]
+pub struct RayPool<const P: usize> {
+    slots: [Option<Slot>; P],
+    used_per_level: [u16; MAX_LEVELS],
+    depth: u16,
+    top: u16,
+    len: usize,
+}
+
+impl<const P: usize> Default for RayPool<P> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const P: usize> RayPool<P> {
+    /// An empty, unconfigured pool (admits nothing).
+    pub const fn new() -> Self {
+        Self { slots: [None; P], used_per_level: [0; MAX_LEVELS], depth: 0, top: 0, len: 0 }
+    }
+
+    /// Sets `depth` slots for each class level `0..=top` and empties the pool.
+    pub fn configure(&mut self, top: u32, depth: u16) -> Result<(), PoolTooSmall> {
+        let needed = (top + 1).saturating_mul(u32::from(depth));
+        if needed > P as u32 || top as usize >= MAX_LEVELS || depth == 0 {
+            return Err(PoolTooSmall { capacity: P as u32, needed });
+        }
+        self.top = top as u16;
+        self.depth = depth;
+        self.clear();
+        Ok(())
+    }
+
+    /// Drops every ray.
+    pub fn clear(&mut self) {
+        self.slots = [None; P];
+        self.used_per_level = [0; MAX_LEVELS];
+        self.len = 0;
+    }
+
+    /// Highest class the pool is sized for.
+    pub fn top(&self) -> u16 {
+        self.top
+    }
+
+    /// Rays held.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether the pool holds no ray.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Whether a ray of class `class` would be admitted now.
+    pub fn can_admit(&self, class: u16) -> bool {
+        self.free_level(class).is_some()
+    }
+
+    /// Admits `ray` at the highest free level `<= class`; returns its slot
+    /// index (its tag), or hands the ray back.
+    pub fn admit(&mut self, ray: RayMsg, stage: Stage) -> Result<u16, RayMsg> {
+        let Some(level) = self.free_level(ray.class) else {
+            return Err(ray);
+        };
+        let Some(index) = self.slots.iter().position(Option::is_none) else {
+            return Err(ray);
+        };
+        if let (Some(slot), Some(used)) =
+            (self.slots.get_mut(index), self.used_per_level.get_mut(usize::from(level)))
+        {
+            *slot = Some(Slot { ray, stage, level });
+            *used += 1;
+            self.len += 1;
+        }
+        Ok(index as u16)
+    }
+
+    /// Frees slot `index`, returning its ray.
+    pub fn remove(&mut self, index: u16) -> Option<Slot> {
+        let slot = self.slots.get_mut(usize::from(index))?.take()?;
+        if let Some(used) = self.used_per_level.get_mut(usize::from(slot.level)) {
+            *used = used.saturating_sub(1);
+        }
+        self.len -= 1;
+        Some(slot)
+    }
+
+    /// The slot at `index`.
+    pub fn get(&self, index: u16) -> Option<&Slot> {
+        self.slots.get(usize::from(index))?.as_ref()
+    }
+
+    /// The slot at `index`, mutably.
+    pub fn get_mut(&mut self, index: u16) -> Option<&mut Slot> {
+        self.slots.get_mut(usize::from(index))?.as_mut()
+    }
+
+    /// Slot capacity.
+    pub const fn capacity(&self) -> u16 {
+        P as u16
+    }
+
+    /// Indices and slots of every held ray.
+    pub fn iter(&self) -> impl Iterator<Item = (u16, &Slot)> {
+        self.slots.iter().enumerate().filter_map(|(i, s)| s.as_ref().map(|s| (i as u16, s)))
+    }
+
+    /// The ray of the highest class among those `ready` accepts: finishing high
+    /// classes first frees the reserved levels soonest. Ties: lowest slot.
+    pub fn next_work_where(&self, ready: impl Fn(&Slot) -> bool) -> Option<u16> {
+        let mut best: Option<(u16, u16)> = None;
+        for (i, slot) in self.iter() {
+            if best.is_none_or(|(class, _)| slot.ray.class > class) && ready(slot) {
+                best = Some((slot.ray.class, i));
+            }
+        }
+        best.map(|(_, i)| i)
+    }
+
+    fn free_level(&self, class: u16) -> Option<u16> {
+        if class > self.top {
+            return None;
+        }
+        (0..=class).rev().find(|&l| self.used_per_level.get(usize::from(l)).is_some_and(|&u| u < self.depth))
+    }
+}
