@@ -1,1 +1,277 @@
-fn main() {}
+//! `host-tool`: render on the in-memory array, render the f64 reference, compare.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use host_tool::compare::compare;
+use host_tool::error::{HostError, input};
+use host_tool::output::{png, write_atomic};
+use host_tool::render::{RenderOptions, RenderResult, render_sim};
+use host_tool::scene::Scene;
+use host_tool::{direct, reference};
+use link_proto::InitialRays;
+use serde_json::json;
+
+#[derive(Parser)]
+#[command(
+    name = "host-tool",
+    version,
+    about = "Host of the sliding-boundary ray tracer (Nemoto & Omachi, 1986)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render on an in-memory array of nodes; write the image, per-node loads and a summary.
+    Render(RenderArgs),
+    /// Render the same scene with the independent f64 reference renderer.
+    Reference(ReferenceArgs),
+    /// Render with the fixed-point kernels and the f64 reference; print the comparison as JSON.
+    Compare(SceneArgs),
+}
+
+#[derive(Args, Clone)]
+struct SceneArgs {
+    /// Scene file (JSON; schema in the README). Without it, a random scene is made.
+    #[arg(long, value_name = "FILE.json", conflicts_with_all = ["spheres", "seed", "volume_ratio"])]
+    scene: Option<PathBuf>,
+    /// Random scene: number of spheres.
+    #[arg(long, value_name = "N")]
+    spheres: Option<usize>,
+    /// Random scene: seed.
+    #[arg(long, value_name = "S")]
+    seed: Option<u64>,
+    /// Random scene: volume ratio of the cube the spheres are confined to, (0, 1].
+    #[arg(long, value_name = "V")]
+    volume_ratio: Option<f64>,
+    /// Grid size for a random scene.
+    #[arg(long, value_name = "XxYxZ", value_parser = parse_triple, default_value = "32x32x32")]
+    grid: [u16; 3],
+    /// Image size.
+    #[arg(long, value_name = "WxH", value_parser = parse_pair, default_value = "256x256")]
+    size: [u16; 2],
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum InitialMode {
+    /// Every node creates the rays of its sub-image.
+    Parallel,
+    /// The node holding the eye creates all of them.
+    Eye,
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Array of nodes.
+    #[arg(long, value_name = "XxYxZ", value_parser = parse_triple, default_value = "4x4x4")]
+    array: [u16; 3],
+    /// Who creates the initial rays.
+    #[arg(long, value_enum, default_value = "parallel")]
+    initial_rays: InitialMode,
+    /// Ray pool slots per class level in each node (back-pressure depth).
+    #[arg(long, value_name = "N", default_value_t = 4)]
+    queue_depth: u16,
+    /// Output image.
+    #[arg(long, value_name = "FILE.png", default_value = "render.png")]
+    out: PathBuf,
+    /// Per-node load table.
+    #[arg(long, value_name = "FILE.csv", default_value = "loads.csv")]
+    loads: PathBuf,
+    /// Run summary.
+    #[arg(long, value_name = "FILE.json", default_value = "summary.json")]
+    summary: PathBuf,
+}
+
+#[derive(Args)]
+struct ReferenceArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Output image.
+    #[arg(long, value_name = "FILE.png", default_value = "reference.png")]
+    out: PathBuf,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(args) => render(args),
+        Command::Reference(args) => reference_cmd(args),
+        Command::Compare(args) => compare_cmd(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(e.exit_code() as u8)
+        }
+    }
+}
+
+/// The scene the options describe: a file, a random scene, or the built-in demo.
+fn load_scene(args: &SceneArgs) -> Result<Scene, HostError> {
+    if let Some(path) = &args.scene {
+        return Scene::load(path);
+    }
+    let default_demo = args.spheres.is_none() && args.seed.is_none() && args.volume_ratio.is_none();
+    let (count, seed, ratio) = if default_demo {
+        (400, 1986, 1.0)
+    } else {
+        (args.spheres.unwrap_or(1000), args.seed.unwrap_or(1), args.volume_ratio.unwrap_or(1.0))
+    };
+    Scene::random(count, seed, ratio, args.grid)
+}
+
+fn render(args: RenderArgs) -> Result<(), HostError> {
+    let scene = load_scene(&args.scene)?;
+    let mut opts = RenderOptions::new(args.array);
+    opts.size = args.scene.size;
+    opts.level_depth = args.queue_depth;
+    opts.initial = match args.initial_rays {
+        InitialMode::Parallel => InitialRays::Parallel,
+        InitialMode::Eye => InitialRays::EyeNode,
+    };
+    let result = render_sim(&scene, &opts)?;
+    let f = &result.frame;
+    let image = png(f.width, f.height, &f.rgb8())?;
+    let summary = summary_json(&scene, &opts, &result);
+    let loads = loads_csv(&result);
+    write_atomic(&args.out, &image)?;
+    write_atomic(&args.loads, loads.as_bytes())?;
+    write_atomic(&args.summary, summary.as_bytes())?;
+    eprintln!(
+        "rendered {}x{} on {}x{}x{} nodes: makespan {} cycles, imbalance {:.3}, {} rays, {:.2} s -> {}",
+        f.width,
+        f.height,
+        opts.array[0],
+        opts.array[1],
+        opts.array[2],
+        f.makespan,
+        imbalance(&result),
+        f.rays_terminated,
+        result.wall.as_secs_f64(),
+        args.out.display()
+    );
+    Ok(())
+}
+
+fn reference_cmd(args: ReferenceArgs) -> Result<(), HostError> {
+    let scene = load_scene(&args.scene)?;
+    let [w, h] = args.scene.size;
+    if w == 0 || h == 0 {
+        return Err(input(format!("image size {w}x{h} must be at least 1x1")));
+    }
+    let img = reference::render(&scene, w, h);
+    write_atomic(&args.out, &png(w, h, &img.rgb8())?)?;
+    eprintln!("reference {w}x{h} -> {}", args.out.display());
+    Ok(())
+}
+
+fn compare_cmd(args: SceneArgs) -> Result<(), HostError> {
+    let scene = load_scene(&args)?;
+    let [w, h] = args.size;
+    if w == 0 || h == 0 {
+        return Err(input(format!("image size {w}x{h} must be at least 1x1")));
+    }
+    let fixed = direct::render(&scene, w, h)?;
+    let fixed_rgb: Vec<u8> = fixed.sums.iter().flat_map(|px| px.map(host_tool::frame::to_srgb8)).collect();
+    let refimg = reference::render(&scene, w, h);
+    let c = compare(&scene, args.size, &fixed, &fixed_rgb, &refimg, &refimg.rgb8());
+    let text = serde_json::to_string_pretty(&c).map_err(|e| HostError::Io(e.to_string()))?;
+    println!("{text}");
+    Ok(())
+}
+
+/// max / mean of the nodes' running time.
+fn imbalance(r: &RenderResult) -> f64 {
+    let busy: Vec<f64> = r.frame.loads.iter().map(|l| l.map_or(0.0, |l| l.running as f64)).collect();
+    let mean = busy.iter().sum::<f64>() / busy.len().max(1) as f64;
+    busy.iter().cloned().fold(0.0, f64::max) / mean.max(f64::MIN_POSITIVE)
+}
+
+fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String {
+    let f = &r.frame;
+    let nodes: Vec<_> = f
+        .loads
+        .iter()
+        .enumerate()
+        .map(|(id, l)| {
+            let l = l.unwrap_or(link_proto::LoadReport {
+                node: id as u16,
+                interval: 0,
+                running: 0,
+                waiting: 0,
+                rays: 0,
+                sphere_tests: 0,
+                cube_steps: 0,
+            });
+            let b = r.partition.bounds(id);
+            json!({
+                "id": id, "coord": r.partition.coord(id), "lo": b.lo, "hi": b.hi,
+                "running": l.running, "waiting": l.waiting, "rays": l.rays,
+                "sphere_tests": l.sphere_tests, "cube_steps": l.cube_steps,
+                "bytes_sent": r.bytes[id].iter().sum::<u64>(),
+            })
+        })
+        .collect();
+    let v = json!({
+        "makespan": f.makespan,
+        "imbalance": imbalance(r),
+        "rays_created": f.rays_created,
+        "rays_terminated": f.rays_terminated,
+        "array": opts.array,
+        "grid": scene.grid,
+        "size": opts.size,
+        "spheres": scene.spheres.len(),
+        "lights": scene.lights.len(),
+        "initial_rays": match opts.initial { InitialRays::Parallel => "parallel", InitialRays::EyeNode => "eye" },
+        "queue_depth": opts.level_depth,
+        "rounds": r.stats.rounds,
+        "wall_seconds": r.wall.as_secs_f64(),
+        "nodes": nodes,
+    });
+    serde_json::to_string_pretty(&v).unwrap_or_default()
+}
+
+fn loads_csv(r: &RenderResult) -> String {
+    let mut s = String::from("node,x,y,z,running,waiting,load,rays,sphere_tests,cube_steps,bytes_sent\n");
+    for (id, l) in r.frame.loads.iter().enumerate() {
+        let c = r.partition.coord(id);
+        let (run, wait, rays, tests, steps) =
+            l.map_or((0, 0, 0, 0, 0), |l| (l.running, l.waiting, l.rays, l.sphere_tests, l.cube_steps));
+        let load = if wait == 0 { f64::INFINITY } else { run as f64 / wait as f64 };
+        s += &format!(
+            "{id},{},{},{},{run},{wait},{load:.4},{rays},{tests},{steps},{}\n",
+            c[0],
+            c[1],
+            c[2],
+            r.bytes[id].iter().sum::<u64>()
+        );
+    }
+    s
+}
+
+fn parse_triple(s: &str) -> Result<[u16; 3], String> {
+    let parts: Vec<&str> = s.split('x').collect();
+    match parts.as_slice() {
+        [a, b, c] => Ok([num(a)?, num(b)?, num(c)?]),
+        _ => Err(format!("expected XxYxZ such as 4x4x4, got '{s}'")),
+    }
+}
+
+fn parse_pair(s: &str) -> Result<[u16; 2], String> {
+    let parts: Vec<&str> = s.split('x').collect();
+    match parts.as_slice() {
+        [a, b] => Ok([num(a)?, num(b)?]),
+        _ => Err(format!("expected WxH such as 256x256, got '{s}'")),
+    }
+}
+
+fn num(s: &str) -> Result<u16, String> {
+    s.trim().parse::<u16>().map_err(|_| format!("'{s}' is not a whole number from 0 to 65535"))
+}

@@ -315,6 +315,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         };
         let sphere = Point::from_bits(s.center)
             .and_then(|c| Sphere::new(s.id, c, Scalar::from_bits(s.radius), material, &self.grid));
+        let sphere = sphere.and_then(|s| {
+            if s.within(&self.grid) { Ok(s) } else { Err(Error::OutOfRange(crate::error::Field::Center)) }
+        });
         match sphere.map(|sphere| self.region.insert(sphere)) {
             Ok(Ok(_)) => {}
             Ok(Err(rejected)) => self.fail_with(rejected.error),

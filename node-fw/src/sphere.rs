@@ -81,6 +81,16 @@ impl Sphere {
         Ok(Self { id, center, radius, r2: i64::from(radius) * i64::from(radius), material })
     }
 
+    /// Whether the whole sphere lies in the closed box of `grid` (the scene is
+    /// the grid: a node rejects a sphere that sticks out of it).
+    pub fn within(&self, grid: &Grid) -> bool {
+        let r = i64::from(self.radius);
+        self.center.iter().zip(grid.size()).all(|(&c, s)| {
+            let c = i64::from(c);
+            c - r >= 0 && c + r <= i64::from(s) * crate::limits::ONE
+        })
+    }
+
     /// Scene-wide id.
     pub fn id(&self) -> u16 {
         self.id

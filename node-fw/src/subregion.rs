@@ -230,7 +230,8 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
             walk.step();
             stats.cube_steps += 1;
             if !self.grid.contains(walk.cell()) {
-                // A hit's rounded t may fall just past the last cube's exit.
+                // Spheres lie inside the grid, so a hit still pending here is one
+                // whose rounded t fell just past the grid's boundary.
                 return best.map_or(Outcome::LeftGrid, Outcome::Hit);
             }
         }

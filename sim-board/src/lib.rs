@@ -1,1 +1,17 @@
+//! An in-memory board of X x Y x Z nodes running the real node firmware, joined
+//! by in-memory links, with deterministic virtual time.
+//!
+//! Each node's work is charged by a [`CostModel`] (cube steps, sphere tests,
+//! shading, messages, bytes over links of configurable bandwidth and latency),
+//! so running and waiting time are counted as in the paper's simulator. The
+//! simulation is a conservative parallel discrete-event simulation: in a round
+//! of one link latency no message can both be sent and arrive, so the nodes of
+//! a round are independent and run on all cores, and the result does not depend
+//! on thread scheduling.
 
+pub mod board;
+pub mod cost;
+pub mod sim_links;
+
+pub use board::{Board, HostEndpoint, RunStats, SimConfig, SimError, SimNode};
+pub use cost::{CostModel, LinkModel};

@@ -1,0 +1,153 @@
+//! A plain single-threaded loop over the node kernels, with no nodes and no
+//! messages: the whole grid as one subregion, each pixel's ray tree walked
+//! depth-first. It produces the same image as the array (the same integer
+//! contributions), the fixed-point first hit of every pixel for `compare`, and
+//! the baseline that measures what the node machinery costs.
+
+use link_proto::{RayKind, RayMsg};
+use node_fw::camera::primary_line;
+use node_fw::shading::{Child, Q15_ONE, Scene as Shading, Surface};
+use node_fw::{
+    CubeBox, DigitalLine, Direction, Grid, Line, Material, Outcome, Point, Query, Sphere, Subregion,
+};
+use node_fw::{limits::Scalar, sphere::Hit};
+
+use crate::camera::PixelBasis;
+use crate::error::{HostError, input};
+use crate::scene::Scene;
+
+/// The whole grid in one subregion: up to 64^3 cubes and 65535 references.
+type Whole = Subregion<8192, 65535, 262_144>;
+
+/// The first hit of a pixel's primary ray.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PrimaryHit {
+    /// Sphere id.
+    pub sphere: u16,
+    /// Ray parameter, cubes.
+    pub t: f64,
+}
+
+/// Result of a direct render.
+#[derive(Debug, Clone)]
+pub struct DirectImage {
+    /// Per pixel, sum of Q1.15 contributions.
+    pub sums: Vec<[u64; 3]>,
+    /// Per pixel, the primary hit.
+    pub hits: Vec<Option<PrimaryHit>>,
+    /// Rays traced.
+    pub rays: u64,
+}
+
+/// Renders `scene` at `width` x `height` with the node kernels in one loop.
+pub fn render(scene: &Scene, width: u16, height: u16) -> Result<DirectImage, HostError> {
+    let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
+    let mut region: Box<Whole> = Box::new(Whole::new());
+    region
+        .assign(grid, CubeBox { lo: [0; 3], hi: scene.grid })
+        .map_err(|e| input(format!("the direct renderer holds grids up to 262144 cubes: {e:?}")))?;
+    for m in scene.sphere_msgs() {
+        let material = Material {
+            color: m.material.color,
+            ambient: m.material.ambient,
+            diffuse: m.material.diffuse,
+            specular: m.material.specular,
+            shininess: m.material.shininess,
+            reflect: m.material.reflect,
+        };
+        let center = Point::from_bits(m.center).map_err(|e| input(format!("sphere {}: {e:?}", m.id)))?;
+        let sphere = Sphere::new(m.id, center, Scalar::from_bits(m.radius), material, &grid)
+            .map_err(|e| input(format!("sphere {}: {e:?}", m.id)))?;
+        region
+            .insert(sphere)
+            .map_err(|r| input(format!("direct renderer: sphere {}: {:?}", m.id, r.error)))?;
+    }
+    let header = scene.header();
+    let lights = scene.light_msgs();
+    let shading = Shading { header: &header, grid: &grid, lights: &lights };
+    let camera = PixelBasis::new(&scene.camera(), width, height).msg();
+    let pixels = usize::from(width) * usize::from(height);
+    let mut out = DirectImage { sums: vec![[0; 3]; pixels], hits: vec![None; pixels], rays: 0 };
+    let mut stack: Vec<RayMsg> = Vec::new();
+    for y in 0..height {
+        for x in 0..width {
+            let pixel = usize::from(y) * usize::from(width) + usize::from(x);
+            let line = primary_line(&camera, x, y).map_err(|e| input(format!("camera: {e:?}")))?;
+            let ray = RayMsg {
+                origin: line.origin(),
+                dir: line.dir(),
+                cell: [0; 3],
+                pixel: pixel as u32,
+                weight: [Q15_ONE; 3],
+                credit: 0,
+                kind: RayKind::Primary,
+                depth: 0,
+                ignore: None,
+                best: None,
+                t_max: None,
+                class: 0,
+                tag: 0,
+            };
+            stack.push(ray);
+            while let Some(ray) = stack.pop() {
+                out.rays += 1;
+                let (rgb, hit) = trace(&mut region, &shading, &grid, &ray, &mut stack);
+                let sum = &mut out.sums[pixel];
+                for c in 0..3 {
+                    sum[c] += u64::from(rgb[c]);
+                }
+                if ray.kind == RayKind::Primary {
+                    out.hits[pixel] = hit.map(|h| PrimaryHit { sphere: h.sphere, t: h.t.to_num() });
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Traces one ray to its end; pushes its children; returns its own contribution.
+fn trace(
+    region: &mut Whole,
+    shading: &Shading<'_>,
+    grid: &Grid,
+    ray: &RayMsg,
+    stack: &mut Vec<RayMsg>,
+) -> ([u32; 3], Option<Hit>) {
+    let line = Line::new(
+        Point::from_bits(ray.origin).expect("quantised origin"),
+        Direction::from_bits(ray.dir).expect("unit direction"),
+    );
+    let Some(mut walk) = DigitalLine::enter(&line, grid) else {
+        let rgb = if ray.kind == RayKind::Shadow { ray.weight } else { shading.background(ray) };
+        return (rgb, None);
+    };
+    let query = Query {
+        ignore: ray.ignore,
+        t_max: ray.t_max.map(Scalar::from_bits),
+        any_hit: ray.kind == RayKind::Shadow,
+    };
+    let (mut best, mut stats) = (None, node_fw::TraceStats::default());
+    match region.trace(&line, &mut walk, &mut best, &query, &mut stats) {
+        Outcome::Hit(hit) => {
+            let sphere = *region.sphere(hit.sphere).expect("hit sphere is stored");
+            let Some(surface) = Surface::at(&line, hit.t, &sphere) else { return ([0; 3], Some(hit)) };
+            let mut rgb = shading.ambient(ray, &sphere);
+            for k in 0..shading.candidates() {
+                match shading.child(ray, &line, &surface, &sphere, k) {
+                    Some(Child::Ray(child)) => stack.push(child),
+                    Some(Child::Done(c)) => {
+                        for i in 0..3 {
+                            rgb[i] = rgb[i].saturating_add(c[i]);
+                        }
+                    }
+                    None => {}
+                }
+            }
+            (rgb, Some(hit))
+        }
+        Outcome::LeftGrid | Outcome::Clear => {
+            (if ray.kind == RayKind::Shadow { ray.weight } else { shading.background(ray) }, None)
+        }
+        Outcome::Blocked | Outcome::Leave => ([0; 3], None),
+    }
+}

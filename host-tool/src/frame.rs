@@ -1,0 +1,107 @@
+//! The frame buffer: integer pixel sums, credit accounting, loads, errors.
+
+use link_proto::{ErrorReport, LoadReport, Message, PROTOCOL_VERSION, Retire};
+use sim_board::HostEndpoint;
+
+/// Everything the host collects during a frame.
+#[derive(Debug, Clone)]
+pub struct FrameBuffer {
+    /// Image width.
+    pub width: u16,
+    /// Image height.
+    pub height: u16,
+    /// Per pixel and channel, sum of Q1.15 contributions.
+    pub sums: Vec<[u64; 3]>,
+    /// Credit expected back (one initial credit per pixel).
+    pub credit_total: u128,
+    /// Credit returned so far.
+    pub credit_back: u128,
+    /// Rays created: one per pixel plus every spawned child.
+    pub rays_created: u64,
+    /// Rays retired.
+    pub rays_terminated: u64,
+    /// Virtual time of the last retirement.
+    pub makespan: u64,
+    /// Final load report per node.
+    pub loads: Vec<Option<LoadReport>>,
+    /// Errors reported by nodes.
+    pub errors: Vec<ErrorReport>,
+    /// Nodes that said hello with another protocol version.
+    pub version_mismatch: Vec<(u16, u16)>,
+    /// Whether the host is collecting final loads (after `Finish`).
+    pub finishing: bool,
+}
+
+impl FrameBuffer {
+    /// An empty frame of `width` x `height` for `nodes` nodes, `credit` per pixel.
+    pub fn new(width: u16, height: u16, nodes: usize, credit: u64) -> Self {
+        let pixels = usize::from(width) * usize::from(height);
+        Self {
+            width,
+            height,
+            sums: vec![[0; 3]; pixels],
+            credit_total: pixels as u128 * u128::from(credit),
+            credit_back: 0,
+            rays_created: pixels as u64,
+            rays_terminated: 0,
+            makespan: 0,
+            loads: vec![None; nodes],
+            errors: Vec::new(),
+            version_mismatch: Vec::new(),
+            finishing: false,
+        }
+    }
+
+    /// Whether every ray has been accounted for.
+    pub fn complete(&self) -> bool {
+        self.credit_back == self.credit_total
+    }
+
+    fn retire(&mut self, at: u64, r: Retire) {
+        if let Some(px) = self.sums.get_mut(r.pixel as usize) {
+            for (s, c) in px.iter_mut().zip(r.rgb) {
+                *s += u64::from(c);
+            }
+        }
+        self.credit_back += u128::from(r.credit);
+        self.rays_created += u64::from(r.spawned);
+        self.rays_terminated += 1;
+        self.makespan = self.makespan.max(at);
+    }
+
+    /// The image as 8-bit sRGB.
+    pub fn rgb8(&self) -> Vec<u8> {
+        self.sums.iter().flat_map(|px| px.map(to_srgb8)).collect()
+    }
+}
+
+/// Linear Q1.15 sum to an 8-bit sRGB value (same integer in, same byte out).
+pub fn to_srgb8(sum: u64) -> u8 {
+    let linear = (sum as f64 / 32768.0).clamp(0.0, 1.0);
+    let s = if linear <= 0.003_130_8 { 12.92 * linear } else { 1.055 * linear.powf(1.0 / 2.4) - 0.055 };
+    (s * 255.0).round() as u8
+}
+
+impl HostEndpoint for FrameBuffer {
+    fn receive(&mut self, node: u16, at: u64, msg: Message) {
+        match msg {
+            Message::Retire(r) => self.retire(at, r),
+            Message::Load(l) => {
+                if let Some(slot) = self.loads.get_mut(usize::from(l.node)) {
+                    *slot = Some(l);
+                }
+            }
+            Message::Error(e) => self.errors.push(e),
+            Message::Hello(h) if h.version != PROTOCOL_VERSION => {
+                self.version_mismatch.push((node, h.version))
+            }
+            _ => {}
+        }
+    }
+
+    fn finished(&self) -> bool {
+        !self.errors.is_empty()
+            || !self.version_mismatch.is_empty()
+            || if self.finishing { self.loads.iter().all(Option::is_some) } else { self.complete() }
+    }
+}

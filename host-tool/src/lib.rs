@@ -1,0 +1,17 @@
+//! The host of the sliding-boundary ray tracer: it describes and validates
+//! scenes, partitions the grid over the array, broadcasts the scene, collects
+//! pixel contributions into images, and drives runs on the in-memory board.
+//! An independent f64 renderer ([`reference`]) checks the fixed-point image.
+
+pub mod camera;
+pub mod compare;
+pub mod direct;
+pub mod error;
+pub mod frame;
+pub mod output;
+pub mod partition;
+pub mod reference;
+pub mod render;
+pub mod scene;
+
+pub use error::HostError;

@@ -1,0 +1,159 @@
+//! The static partition: subregion boxes, sub-image tiles, the eye's node, and a
+//! capacity check before anything is sent.
+
+use link_proto::{Assign, Capacity};
+use node_fw::{CubeBox, Grid, Point, Sphere, limits::Scalar, sphere::Material};
+
+use crate::error::{HostError, input};
+use crate::scene::Scene;
+
+/// How the grid is split over an X x Y x Z array.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Partition {
+    /// Nodes per axis.
+    pub array: [u16; 3],
+    /// Cut positions per axis: `cuts[a][i]..cuts[a][i + 1]` is node row `i`.
+    pub cuts: [Vec<u16>; 3],
+    /// Driving axis of the sliding boundaries.
+    pub driving_axis: u8,
+}
+
+impl Partition {
+    /// Even cuts of `grid` over `array`.
+    pub fn even(grid: [u16; 3], array: [u16; 3], driving_axis: u8) -> Result<Self, HostError> {
+        for a in 0..3 {
+            if array[a] == 0 {
+                return Err(input(format!("array {array:?} needs at least one node per axis")));
+            }
+            if array[a] > grid[a] {
+                return Err(input(format!(
+                    "array {}x{}x{} is larger than the grid {}x{}x{}: each node needs at least one cube per axis",
+                    array[0], array[1], array[2], grid[0], grid[1], grid[2]
+                )));
+            }
+        }
+        let cuts = std::array::from_fn(|a| {
+            (0..=array[a]).map(|i| (u32::from(i) * u32::from(grid[a]) / u32::from(array[a])) as u16).collect()
+        });
+        Ok(Self { array, cuts, driving_axis })
+    }
+
+    /// Number of nodes.
+    pub fn len(&self) -> usize {
+        self.array.iter().map(|&n| usize::from(n)).product()
+    }
+
+    /// Whether the partition has no node.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Array coordinate of node `id` (x fastest).
+    pub fn coord(&self, id: usize) -> [u16; 3] {
+        let [nx, ny, _] = self.array.map(usize::from);
+        [(id % nx) as u16, ((id / nx) % ny) as u16, (id / (nx * ny)) as u16]
+    }
+
+    /// The box of node `id`.
+    pub fn bounds(&self, id: usize) -> CubeBox {
+        let c = self.coord(id);
+        CubeBox {
+            lo: std::array::from_fn(|a| self.cuts[a][usize::from(c[a])]),
+            hi: std::array::from_fn(|a| self.cuts[a][usize::from(c[a]) + 1]),
+        }
+    }
+
+    /// The assignment message of node `id`.
+    pub fn assign(&self, id: usize) -> Assign {
+        let b = self.bounds(id);
+        Assign {
+            array: self.array,
+            coord: self.coord(id),
+            lo: b.lo,
+            hi: b.hi,
+            driving_axis: self.driving_axis,
+        }
+    }
+
+    /// The node whose box holds `p` (clamped into the grid first).
+    pub fn owner_of(&self, p: [f64; 3], grid: [u16; 3]) -> usize {
+        let cell: [u16; 3] = std::array::from_fn(|a| p[a].floor().clamp(0.0, f64::from(grid[a] - 1)) as u16);
+        let idx: [usize; 3] = std::array::from_fn(|a| {
+            self.cuts[a].windows(2).position(|w| cell[a] >= w[0] && cell[a] < w[1]).unwrap_or(0)
+        });
+        idx[0] + usize::from(self.array[0]) * (idx[1] + usize::from(self.array[1]) * idx[2])
+    }
+
+    /// Checks that every node can hold its part of the scene; the error names
+    /// the first node that cannot, and by how much.
+    pub fn check_capacity(&self, scene: &Scene, capacity: Capacity) -> Result<(), HostError> {
+        let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
+        let spheres: Vec<Sphere> = scene
+            .sphere_msgs()
+            .iter()
+            .map(|m| {
+                let c = Point::from_bits(m.center).map_err(|e| input(format!("sphere {}: {e:?}", m.id)))?;
+                Sphere::new(m.id, c, Scalar::from_bits(m.radius), Material::default(), &grid)
+                    .map_err(|e| input(format!("sphere {}: {e:?}", m.id)))
+            })
+            .collect::<Result<_, _>>()?;
+        for id in 0..self.len() {
+            let b = self.bounds(id);
+            let cubes = b.volume();
+            let (mut kept, mut refs) = (0u64, 0u64);
+            for s in &spheres {
+                let mut n = 0u64;
+                b.for_each_surface_cube(s, |_| n += 1);
+                kept += u64::from(n > 0);
+                refs += n;
+            }
+            let c = self.coord(id);
+            let name = format!("node {id} ({},{},{})", c[0], c[1], c[2]);
+            if cubes > u64::from(capacity.cubes) {
+                return Err(input(format!(
+                    "{name} would span {cubes} cubes; a node holds {}",
+                    capacity.cubes
+                )));
+            }
+            if kept > u64::from(capacity.spheres) {
+                return Err(input(format!(
+                    "{name} would hold {kept} spheres; a node holds {}",
+                    capacity.spheres
+                )));
+            }
+            if refs > u64::from(capacity.refs) {
+                return Err(input(format!(
+                    "{name} would hold {refs} sphere references; a node holds {}",
+                    capacity.refs
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Splits a `width` x `height` image into `n` tiles `[x0, y0, x1, y1)`, one per
+/// node: a grid of tiles as close to square as `n` allows.
+pub fn tiles(width: u16, height: u16, n: usize) -> Vec<[u16; 4]> {
+    let aspect = f64::from(width) / f64::from(height);
+    let cols = (1..=n)
+        .filter(|&c| n.is_multiple_of(c))
+        .min_by(|&a, &b| {
+            let score = |c: usize| ((c as f64 / (n / c) as f64) / aspect).ln().abs();
+            score(a).total_cmp(&score(b))
+        })
+        .unwrap_or(1);
+    let rows = n / cols;
+    let split = |len: u16, parts: usize, i: usize| (u32::from(len) * i as u32 / parts as u32) as u16;
+    (0..n)
+        .map(|i| {
+            let (cx, cy) = (i % cols, i / cols);
+            [
+                split(width, cols, cx),
+                split(height, rows, cy),
+                split(width, cols, cx + 1),
+                split(height, rows, cy + 1),
+            ]
+        })
+        .collect()
+}

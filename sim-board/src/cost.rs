@@ -1,0 +1,57 @@
+//! What work and links cost in virtual time (ticks: CPU cycles of a node).
+
+use node_fw::Work;
+
+/// Cycles charged per unit of node work.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CostModel {
+    /// One unit-cube step of the digital line.
+    pub cube_step: u64,
+    /// One ray/sphere test.
+    pub sphere_test: u64,
+    /// Setting up one walk (validating and resuming a ray).
+    pub trace: u64,
+    /// Shading one hit (evaluating and spawning children).
+    pub shade: u64,
+    /// Creating one initial ray (camera direction, grid entry).
+    pub create: u64,
+    /// Handling one received or sent message.
+    pub message: u64,
+}
+
+impl Default for CostModel {
+    /// Cortex-M3-class estimates, in cycles.
+    fn default() -> Self {
+        Self { cube_step: 60, sphere_test: 300, trace: 400, shade: 2_000, create: 800, message: 200 }
+    }
+}
+
+impl CostModel {
+    /// Cycles for one poll's work (at least one if anything was done).
+    pub fn charge(&self, w: &Work) -> u64 {
+        let c = u64::from(w.cube_steps) * self.cube_step
+            + u64::from(w.sphere_tests) * self.sphere_test
+            + u64::from(w.traces) * self.trace
+            + u64::from(w.shades) * self.shade
+            + u64::from(w.created) * self.create
+            + u64::from(w.received + w.sent) * self.message;
+        c.max(u64::from(w.is_busy()))
+    }
+}
+
+/// A link's timing: serialisation per byte, then a fixed latency.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LinkModel {
+    /// Cycles to put one byte on the wire.
+    pub byte: u64,
+    /// Cycles from the last byte sent to the message's arrival.
+    pub latency: u64,
+    /// Messages a link holds before the sender sees it full.
+    pub capacity: usize,
+}
+
+impl Default for LinkModel {
+    fn default() -> Self {
+        Self { byte: 25, latency: 2_000, capacity: 8 }
+    }
+}

@@ -1,0 +1,76 @@
+//! One node's view of its in-memory links during a round.
+
+use std::collections::VecDeque;
+
+use link_proto::{MAX_FRAME_LEN, Message, encode_frame};
+use node_fw::{Links, Port};
+
+/// A message in a link, stamped with its arrival time.
+pub type Stamped = (u64, Message);
+
+/// Per-port state a node owns: what has arrived, what it sent this round.
+#[derive(Debug, Default)]
+pub struct PortState {
+    /// Messages sent to this node, in arrival order.
+    pub inbox: VecDeque<Stamped>,
+    /// Messages this node sent on the port this round.
+    pub outbox: Vec<Stamped>,
+    /// Messages in the peer's inbox from this port at the round's start.
+    pub occupancy: usize,
+    /// When the port's wire is free again.
+    pub busy_until: u64,
+    /// Bytes sent on the port.
+    pub bytes: u64,
+}
+
+/// [`Links`] over a node's seven [`PortState`]s at virtual time `now`.
+pub struct SimLinks<'a> {
+    /// The node's ports, indexed by [`Port::index`].
+    pub ports: &'a mut [PortState; 7],
+    /// Which neighbour ports exist.
+    pub wired: [bool; 7],
+    /// The node's clock.
+    pub now: u64,
+    /// Node-to-node link timing and capacity.
+    pub link: crate::cost::LinkModel,
+    /// Node-to-host link timing and capacity.
+    pub host_link: crate::cost::LinkModel,
+    /// Set when the node tried to send through a port with no neighbour.
+    pub miswired: Option<Port>,
+}
+
+impl Links for SimLinks<'_> {
+    fn recv(&mut self, port: Port) -> Option<Message> {
+        let inbox = &mut self.ports.get_mut(port.index())?.inbox;
+        if inbox.front().is_some_and(|(at, _)| *at <= self.now) {
+            inbox.pop_front().map(|(_, m)| m)
+        } else {
+            None
+        }
+    }
+
+    fn try_send(&mut self, port: Port, msg: Message) -> Result<(), Message> {
+        if !self.wired.get(port.index()).copied().unwrap_or(false) {
+            self.miswired = Some(port);
+            return Err(msg);
+        }
+        let model = if port == Port::Host { self.host_link } else { self.link };
+        let Some(state) = self.ports.get_mut(port.index()) else { return Err(msg) };
+        if state.occupancy + state.outbox.len() >= model.capacity {
+            return Err(msg);
+        }
+        let bytes = frame_len(&msg) as u64;
+        let start = self.now.max(state.busy_until);
+        state.busy_until = start + bytes * model.byte;
+        state.bytes += bytes;
+        state.outbox.push((state.busy_until + model.latency, msg));
+        Ok(())
+    }
+}
+
+/// Bytes the message takes on the wire as a frame.
+pub fn frame_len(msg: &Message) -> usize {
+    let mut buf = [0u8; MAX_FRAME_LEN];
+    let frame = link_proto::Frame { seq: 0, msg: msg.clone() };
+    encode_frame(&frame, &mut buf).unwrap_or(MAX_FRAME_LEN)
+}
