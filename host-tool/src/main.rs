@@ -32,6 +32,28 @@ enum Command {
     Reference(ReferenceArgs),
     /// Render with the fixed-point kernels and the f64 reference; print the comparison as JSON.
     Compare(SceneArgs),
+    /// Benchmarks.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Host rays/s of the in-memory board at several array sizes, and of a plain
+    /// single-threaded loop over the same kernels (the node machinery's overhead).
+    Board(BoardBenchArgs),
+}
+
+#[derive(Args)]
+struct BoardBenchArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Arrays to run, comma-separated.
+    #[arg(long, value_name = "XxYxZ,...", default_value = "1x1x1,2x2x2,4x4x4,8x8x8")]
+    arrays: String,
+    /// Runs per configuration (the best is reported).
+    #[arg(long, default_value_t = 1)]
+    repeat: u32,
 }
 
 #[derive(Args, Clone)]
@@ -103,6 +125,7 @@ fn main() -> ExitCode {
         Command::Render(args) => render(args),
         Command::Reference(args) => reference_cmd(args),
         Command::Compare(args) => compare_cmd(args),
+        Command::Bench(BenchCommand::Board(args)) => bench_board(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -187,6 +210,55 @@ fn compare_cmd(args: SceneArgs) -> Result<(), HostError> {
     Ok(())
 }
 
+fn bench_board(args: BoardBenchArgs) -> Result<(), HostError> {
+    let mut scene_args = args.scene.clone();
+    if scene_args.scene.is_none() && scene_args.spheres.is_none() {
+        scene_args.spheres = Some(1000);
+    }
+    let scene = load_scene(&scene_args)?;
+    let [w, h] = scene_args.size;
+    let arrays: Vec<[u16; 3]> =
+        args.arrays.split(',').map(parse_triple).collect::<Result<_, _>>().map_err(input)?;
+    println!("{{\"size\": [{w}, {h}], \"spheres\": {}, \"runs\": [", scene.spheres.len());
+    let best = |f: &mut dyn FnMut() -> Result<(f64, u64), HostError>| -> Result<(f64, u64), HostError> {
+        let mut out = (f64::INFINITY, 0);
+        for _ in 0..args.repeat.max(1) {
+            let (t, rays) = f()?;
+            out = (out.0.min(t), rays);
+        }
+        Ok(out)
+    };
+    let (t_direct, rays) = best(&mut || {
+        let start = std::time::Instant::now();
+        let img = direct::render(&scene, w, h)?;
+        Ok((start.elapsed().as_secs_f64(), img.rays))
+    })?;
+    let direct_rate = rays as f64 / t_direct;
+    println!(
+        "  {{\"config\": \"single loop\", \"nodes\": 1, \"rays\": {rays}, \"seconds\": {t_direct:.3}, \"rays_per_s\": {direct_rate:.0}}},"
+    );
+    for (i, array) in arrays.iter().enumerate() {
+        let mut opts = RenderOptions::new(*array);
+        opts.size = scene_args.size;
+        let (t, rays) = best(&mut || {
+            let r = render_sim(&scene, &opts)?;
+            Ok((r.wall.as_secs_f64(), r.frame.rays_terminated))
+        })?;
+        let rate = rays as f64 / t;
+        let nodes: u32 = array.iter().map(|&n| u32::from(n)).product();
+        let sep = if i + 1 < arrays.len() { "," } else { "" };
+        println!(
+            "  {{\"config\": \"board {}x{}x{}\", \"nodes\": {nodes}, \"rays\": {rays}, \"seconds\": {t:.3}, \"rays_per_s\": {rate:.0}, \"single_loop_over_board\": {:.2}}}{sep}",
+            array[0],
+            array[1],
+            array[2],
+            direct_rate / rate
+        );
+    }
+    println!("]}}");
+    Ok(())
+}
+
 /// max / mean of the nodes' running time.
 fn imbalance(r: &RenderResult) -> f64 {
     let busy: Vec<f64> = r.frame.loads.iter().map(|l| l.map_or(0.0, |l| l.running as f64)).collect();
@@ -209,12 +281,13 @@ fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String
                 rays: 0,
                 sphere_tests: 0,
                 cube_steps: 0,
+                refused: 0,
             });
             let b = r.partition.bounds(id);
             json!({
                 "id": id, "coord": r.partition.coord(id), "lo": b.lo, "hi": b.hi,
                 "running": l.running, "waiting": l.waiting, "rays": l.rays,
-                "sphere_tests": l.sphere_tests, "cube_steps": l.cube_steps,
+                "sphere_tests": l.sphere_tests, "cube_steps": l.cube_steps, "refused": l.refused,
                 "bytes_sent": r.bytes[id].iter().sum::<u64>(),
             })
         })
@@ -239,14 +312,16 @@ fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String
 }
 
 fn loads_csv(r: &RenderResult) -> String {
-    let mut s = String::from("node,x,y,z,running,waiting,load,rays,sphere_tests,cube_steps,bytes_sent\n");
+    let mut s =
+        String::from("node,x,y,z,running,waiting,load,rays,sphere_tests,cube_steps,refused,bytes_sent\n");
     for (id, l) in r.frame.loads.iter().enumerate() {
         let c = r.partition.coord(id);
-        let (run, wait, rays, tests, steps) =
-            l.map_or((0, 0, 0, 0, 0), |l| (l.running, l.waiting, l.rays, l.sphere_tests, l.cube_steps));
+        let (run, wait, rays, tests, steps, refused) = l.map_or((0, 0, 0, 0, 0, 0), |l| {
+            (l.running, l.waiting, l.rays, l.sphere_tests, l.cube_steps, l.refused)
+        });
         let load = if wait == 0 { f64::INFINITY } else { run as f64 / wait as f64 };
         s += &format!(
-            "{id},{},{},{},{run},{wait},{load:.4},{rays},{tests},{steps},{}\n",
+            "{id},{},{},{},{run},{wait},{load:.4},{rays},{tests},{steps},{refused},{}\n",
             c[0],
             c[1],
             c[2],

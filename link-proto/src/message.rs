@@ -298,6 +298,8 @@ pub struct LoadReport {
     pub sphere_tests: u32,
     /// Unit-cube steps in the interval.
     pub cube_steps: u32,
+    /// Rays this node refused for want of a pool slot (back-pressure events).
+    pub refused: u32,
 }
 
 /// Proposal to move a shared driving-axis boundary.

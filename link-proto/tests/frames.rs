@@ -125,6 +125,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 rays: b.0,
                 sphere_tests: b.1,
                 cube_steps: b.2,
+                refused: b.0 ^ b.1,
             }
         )),
         (any::<u32>(), any::<u16>())

@@ -103,6 +103,8 @@ pub struct Totals {
     pub sphere_tests: u32,
     /// Cube steps.
     pub cube_steps: u32,
+    /// Rays refused for want of a pool slot.
+    pub refused: u32,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -169,7 +171,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             error_due: None,
             load_due: None,
             meter: LoadMeter { last: 0, busy: false, running: 0, waiting: 0 },
-            totals: Totals { rays: 0, sphere_tests: 0, cube_steps: 0 },
+            totals: Totals { rays: 0, sphere_tests: 0, cube_steps: 0, refused: 0 },
         }
     }
 
@@ -374,6 +376,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             return self.fail(ErrorCode::ClassOverflow, u32::from(ray.class), u32::from(self.pool.top()));
         }
         let accepted = self.pool.admit(ray, Stage::Trace).is_ok();
+        self.totals.refused += u32::from(!accepted);
         let reply = RayReply { tag: ray.tag, accepted };
         let (Some(queue), Some(refused)) =
             (self.replies.get_mut(port.index()), self.refused.get_mut(port.index()))
@@ -404,7 +407,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     }
 
     fn retry_refused(&mut self, port: Port) {
-        for i in 0..self.pool.capacity() {
+        for n in 0..self.pool.len() {
+            let Some(i) = self.pool.held_at(n) else { continue };
             if let Some(slot) = self.pool.get_mut(i).filter(|s| s.stage == Stage::Refused(port)) {
                 slot.stage = Stage::Outbound(port);
             }
@@ -635,6 +639,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 rays: self.totals.rays,
                 sphere_tests: self.totals.sphere_tests,
                 cube_steps: self.totals.cube_steps,
+                refused: self.totals.refused,
             };
             if send(links, Port::Host, Message::Load(report)) {
                 self.load_due = None;
@@ -643,7 +648,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     }
 
     fn send_rays<L: Links>(&mut self, links: &mut L, send: &mut impl FnMut(&mut L, Port, Message) -> bool) {
-        for i in 0..self.pool.capacity() {
+        // Downward, so removing a ray (swap-remove) never skips one.
+        for n in (0..self.pool.len()).rev() {
+            let Some(i) = self.pool.held_at(n) else { continue };
             let Some(stage) = self.pool.get(i).map(|s| s.stage) else { continue };
             match stage {
                 Stage::Retire(r) if send(links, Port::Host, Message::Retire(r)) => {

@@ -82,10 +82,13 @@ pub struct PoolTooSmall {
 #[derive(Debug, Clone)]
 pub struct RayPool<const P: usize> {
     slots: [Option<Slot>; P],
+    /// Indices of occupied slots (scans touch only these).
+    held: heapless::Vec<u16, P>,
+    /// Indices of free slots, lowest on top.
+    free: heapless::Vec<u16, P>,
     used_per_level: [u16; MAX_LEVELS],
     depth: u16,
     top: u16,
-    len: usize,
 }
 
 impl<const P: usize> Default for RayPool<P> {
@@ -97,7 +100,14 @@ impl<const P: usize> Default for RayPool<P> {
 impl<const P: usize> RayPool<P> {
     /// An empty, unconfigured pool (admits nothing).
     pub const fn new() -> Self {
-        Self { slots: [None; P], used_per_level: [0; MAX_LEVELS], depth: 0, top: 0, len: 0 }
+        Self {
+            slots: [None; P],
+            held: heapless::Vec::new(),
+            free: heapless::Vec::new(),
+            used_per_level: [0; MAX_LEVELS],
+            depth: 0,
+            top: 0,
+        }
     }
 
     /// Sets `depth` slots for each class level `0..=top` and empties the pool.
@@ -114,9 +124,18 @@ impl<const P: usize> RayPool<P> {
 
     /// Drops every ray.
     pub fn clear(&mut self) {
-        self.slots = [None; P];
+        for &i in &self.held {
+            if let Some(slot) = self.slots.get_mut(usize::from(i)) {
+                *slot = None;
+            }
+        }
+        self.held.clear();
+        self.free.clear();
+        for i in (0..P as u16).rev() {
+            // Cannot fail: `free` holds P entries.
+            let _ = self.free.push(i);
+        }
         self.used_per_level = [0; MAX_LEVELS];
-        self.len = 0;
     }
 
     /// Highest class the pool is sized for.
@@ -126,12 +145,12 @@ impl<const P: usize> RayPool<P> {
 
     /// Rays held.
     pub fn len(&self) -> usize {
-        self.len
+        self.held.len()
     }
 
     /// Whether the pool holds no ray.
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        self.held.is_empty()
     }
 
     /// Whether a ray of class `class` would be admitted now.
@@ -145,17 +164,20 @@ impl<const P: usize> RayPool<P> {
         let Some(level) = self.free_level(ray.class) else {
             return Err(ray);
         };
-        let Some(index) = self.slots.iter().position(Option::is_none) else {
+        let Some(index) = self.free.pop() else {
             return Err(ray);
         };
-        if let (Some(slot), Some(used)) =
-            (self.slots.get_mut(index), self.used_per_level.get_mut(usize::from(level)))
-        {
-            *slot = Some(Slot { ray, stage, level });
-            *used += 1;
-            self.len += 1;
+        match (self.slots.get_mut(usize::from(index)), self.used_per_level.get_mut(usize::from(level))) {
+            (Some(slot), Some(used)) if self.held.push(index).is_ok() => {
+                *slot = Some(Slot { ray, stage, level });
+                *used += 1;
+                Ok(index)
+            }
+            _ => {
+                let _ = self.free.push(index);
+                Err(ray)
+            }
         }
-        Ok(index as u16)
     }
 
     /// Frees slot `index`, returning its ray.
@@ -164,7 +186,10 @@ impl<const P: usize> RayPool<P> {
         if let Some(used) = self.used_per_level.get_mut(usize::from(slot.level)) {
             *used = used.saturating_sub(1);
         }
-        self.len -= 1;
+        if let Some(pos) = self.held.iter().position(|&i| i == index) {
+            self.held.swap_remove(pos);
+        }
+        let _ = self.free.push(index);
         Some(slot)
     }
 
@@ -185,7 +210,13 @@ impl<const P: usize> RayPool<P> {
 
     /// Indices and slots of every held ray.
     pub fn iter(&self) -> impl Iterator<Item = (u16, &Slot)> {
-        self.slots.iter().enumerate().filter_map(|(i, s)| s.as_ref().map(|s| (i as u16, s)))
+        self.held.iter().filter_map(|&i| self.get(i).map(|s| (i, s)))
+    }
+
+    /// Index of the `n`-th held ray (in no particular order), for loops that
+    /// remove rays as they go: walk `n` downward from `len() - 1`.
+    pub fn held_at(&self, n: usize) -> Option<u16> {
+        self.held.get(n).copied()
     }
 
     /// The ray of the highest class among those `ready` accepts: finishing high
@@ -193,7 +224,9 @@ impl<const P: usize> RayPool<P> {
     pub fn next_work_where(&self, ready: impl Fn(&Slot) -> bool) -> Option<u16> {
         let mut best: Option<(u16, u16)> = None;
         for (i, slot) in self.iter() {
-            if best.is_none_or(|(class, _)| slot.ray.class > class) && ready(slot) {
+            let better =
+                best.is_none_or(|(class, at)| slot.ray.class > class || (slot.ray.class == class && i < at));
+            if better && ready(slot) {
                 best = Some((slot.ray.class, i));
             }
         }

@@ -13,6 +13,9 @@ use crate::sim_links::{PortState, SimLinks};
 /// references, 32768 cubes (a 32^3 grid on one node) and 2048 ray slots.
 pub type SimNode = Node<2048, 32768, 32768, 2048>;
 
+/// Active nodes in a round from which the round runs on all cores.
+const PARALLEL_MIN_ACTIVE: usize = 32;
+
 /// Board settings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SimConfig {
@@ -278,8 +281,10 @@ impl Board {
             }
             s.run(end, &config)
         };
-        if busy > 1 {
-            self.slots.par_iter_mut().map(run).reduce(|| false, |a, b| a | b)
+        // Fork-join costs microseconds: worth it only when a round has many active nodes.
+        if busy >= PARALLEL_MIN_ACTIVE {
+            let chunk = self.slots.len().div_ceil(rayon::current_num_threads().max(1));
+            self.slots.par_iter_mut().with_min_len(chunk).map(run).reduce(|| false, |a, b| a | b)
         } else {
             self.slots.iter_mut().map(run).fold(false, |a, b| a | b)
         }

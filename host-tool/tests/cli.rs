@@ -1,0 +1,94 @@
+//! The command line: bad input gets one clear line and a non-zero exit, and
+//! nothing is written.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn host_tool(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_host-tool")).current_dir(dir).args(args).output().expect("runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("host-tool-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs a failing command: exactly one line on stderr naming `needle`, exit
+/// `code`, and no output files.
+fn fails(name: &str, args: &[&str], scene: Option<&str>, code: i32, needle: &str) {
+    let dir = scratch(name);
+    if let Some(text) = scene {
+        std::fs::write(dir.join("scene.json"), text).unwrap();
+    }
+    let out = host_tool(&dir, args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(code), "{name}: {err}");
+    assert!(err.contains(needle), "{name}: '{err}' lacks '{needle}'");
+    assert_eq!(err.trim_end().lines().count(), 1, "{name}: one line, got '{err}'");
+    for f in ["render.png", "loads.csv", "summary.json"] {
+        assert!(!dir.join(f).exists(), "{name}: {f} written despite the error");
+    }
+}
+
+const ONE_SPHERE: &str = r#"{"grid": [8, 8, 8], "spheres": [{"center": [4, 4, 4], "radius": RADIUS}]}"#;
+
+#[test]
+fn bad_input_is_one_line_and_nonzero() {
+    fails("nan", &["render", "--spheres", "10", "--volume-ratio", "NaN"], None, 2, "volume-ratio");
+    fails(
+        "neg-radius",
+        &["render", "--scene", "scene.json"],
+        Some(&ONE_SPHERE.replace("RADIUS", "-1")),
+        2,
+        "radius must be positive",
+    );
+    fails(
+        "zero-radius",
+        &["render", "--scene", "scene.json"],
+        Some(&ONE_SPHERE.replace("RADIUS", "0")),
+        2,
+        "radius must be positive",
+    );
+    fails(
+        "outside",
+        &["render", "--scene", "scene.json"],
+        Some(r#"{"grid": [8, 8, 8], "spheres": [{"center": [9, 4, 4], "radius": 0.5}]}"#),
+        2,
+        "outside the grid",
+    );
+    fails("malformed", &["render", "--scene", "scene.json"], Some("{\"grid\": [8, 8"), 2, "is not valid");
+    fails(
+        "big-array",
+        &["render", "--spheres", "10", "--grid", "8x8x8", "--array", "16x2x2"],
+        None,
+        2,
+        "larger than the grid",
+    );
+    fails("zero-size", &["render", "--spheres", "10", "--size", "0x10"], None, 2, "at least 1x1");
+    fails("missing", &["render", "--scene", "nope.json"], None, 3, "cannot read scene");
+}
+
+#[test]
+fn default_render_writes_image_loads_and_summary() {
+    let dir = scratch("ok");
+    let out = host_tool(&dir, &["render", "--size", "32x24", "--array", "2x2x2", "--spheres", "50"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["rays_created"], summary["rays_terminated"]);
+    assert_eq!(summary["nodes"].as_array().unwrap().len(), 8);
+    for key in ["makespan", "imbalance"] {
+        assert!(summary[key].as_f64().unwrap() > 0.0, "{key}");
+    }
+    for n in summary["nodes"].as_array().unwrap() {
+        for key in ["running", "waiting", "rays", "sphere_tests"] {
+            assert!(n[key].is_u64(), "{key}");
+        }
+    }
+    let csv = std::fs::read_to_string(dir.join("loads.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 9);
+    let png = image::open(dir.join("render.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (32, 24));
+}
