@@ -30,6 +30,12 @@ pub struct FrameBuffer {
     pub version_mismatch: Vec<(u16, u16)>,
     /// Whether the host is collecting final loads (after `Finish`).
     pub finishing: bool,
+    /// Interval load reports: (arrival time, report).
+    pub history: Vec<(u64, LoadReport)>,
+    /// Committed slides: (arrival time, receiving node, new boundary position).
+    pub slides: Vec<(u64, u16, u16)>,
+    /// Slides refused for capacity: (arrival time, receiving node, boundary).
+    pub refused_slides: Vec<(u64, u16, u16)>,
 }
 
 impl FrameBuffer {
@@ -49,6 +55,9 @@ impl FrameBuffer {
             errors: Vec::new(),
             version_mismatch: Vec::new(),
             finishing: false,
+            history: Vec::new(),
+            slides: Vec::new(),
+            refused_slides: Vec::new(),
         }
     }
 
@@ -86,11 +95,14 @@ impl HostEndpoint for FrameBuffer {
     fn receive(&mut self, node: u16, at: u64, msg: Message) {
         match msg {
             Message::Retire(r) => self.retire(at, r),
-            Message::Load(l) => {
+            Message::Load(l) if l.interval == node_fw::node::FINAL_INTERVAL => {
                 if let Some(slot) = self.loads.get_mut(usize::from(l.node)) {
                     *slot = Some(l);
                 }
             }
+            Message::Load(l) => self.history.push((at, l)),
+            Message::SlideDone(d) => self.slides.push((at, node, d.boundary)),
+            Message::SlideReply(r) => self.refused_slides.push((at, node, r.boundary)),
             Message::Error(e) => self.errors.push(e),
             Message::Hello(h) if h.version != PROTOCOL_VERSION => {
                 self.version_mismatch.push((node, h.version))

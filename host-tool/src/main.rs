@@ -10,7 +10,7 @@ use host_tool::output::{png, write_atomic};
 use host_tool::render::{RenderOptions, RenderResult, render_sim};
 use host_tool::scene::Scene;
 use host_tool::{direct, reference};
-use link_proto::InitialRays;
+use link_proto::{Balance, InitialRays};
 use serde_json::json;
 
 #[derive(Parser)]
@@ -86,10 +86,45 @@ enum InitialMode {
     Eye,
 }
 
+#[derive(Clone, Copy, ValueEnum)]
+enum BalanceMode {
+    /// No redistribution: the even partition throughout.
+    Static,
+    /// The paper's sliding boundary surfaces.
+    Slide,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum AxisChoice {
+    /// The axis along which the sphere counts of the node layers vary most.
+    Auto,
+    /// x.
+    X,
+    /// y.
+    Y,
+    /// z.
+    Z,
+}
+
 #[derive(Args)]
 struct RenderArgs {
     #[command(flatten)]
     scene: SceneArgs,
+    /// Load balancing.
+    #[arg(long, value_enum, default_value = "slide")]
+    balance: BalanceMode,
+    /// Virtual cycles between load comparisons (sliding).
+    #[arg(long, value_name = "CYCLES", default_value_t = 200_000)]
+    interval: u64,
+    /// A node whose load (running/waiting) is under this may take a slab (sliding).
+    #[arg(long, value_name = "LOAD", default_value_t = 1.0)]
+    threshold: f64,
+    /// Driving axis of the sliding boundaries.
+    #[arg(long, value_enum, default_value = "auto")]
+    driving_axis: AxisChoice,
+    /// Load history over virtual time (per node and interval).
+    #[arg(long, value_name = "FILE.csv", default_value = "load-history.csv")]
+    load_history: PathBuf,
     /// Array of nodes.
     #[arg(long, value_name = "XxYxZ", value_parser = parse_triple, default_value = "4x4x4")]
     array: [u16; 3],
@@ -159,14 +194,35 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         InitialMode::Parallel => InitialRays::Parallel,
         InitialMode::Eye => InitialRays::EyeNode,
     };
+    opts.driving_axis = match args.driving_axis {
+        AxisChoice::Auto => None,
+        AxisChoice::X => Some(0),
+        AxisChoice::Y => Some(1),
+        AxisChoice::Z => Some(2),
+    };
+    if let BalanceMode::Slide = args.balance {
+        if args.interval == 0 {
+            return Err(input("--interval must be at least 1 cycle"));
+        }
+        if !args.threshold.is_finite() || args.threshold <= 0.0 || args.threshold > 65535.0 {
+            return Err(input(format!("--threshold must be a load in (0, 65535], got {}", args.threshold)));
+        }
+        opts.balance = Some(Balance {
+            interval: args.interval,
+            threshold: (args.threshold * 65536.0).round() as u32,
+            step: 1,
+        });
+    }
     let result = render_sim(&scene, &opts)?;
     let f = &result.frame;
     let image = png(f.width, f.height, &f.rgb8())?;
     let summary = summary_json(&scene, &opts, &result);
     let loads = loads_csv(&result);
+    let history = history_csv(&result);
     write_atomic(&args.out, &image)?;
     write_atomic(&args.loads, loads.as_bytes())?;
     write_atomic(&args.summary, summary.as_bytes())?;
+    write_atomic(&args.load_history, history.as_bytes())?;
     eprintln!(
         "rendered {}x{} on {}x{}x{} nodes: makespan {} cycles, imbalance {:.3}, {} rays, {:.2} s -> {}",
         f.width,
@@ -304,6 +360,10 @@ fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String
         "lights": scene.lights.len(),
         "initial_rays": match opts.initial { InitialRays::Parallel => "parallel", InitialRays::EyeNode => "eye" },
         "queue_depth": opts.level_depth,
+        "balance": if opts.balance.is_some() { "slide" } else { "static" },
+        "driving_axis": r.partition.driving_axis,
+        "slides": f.slides.len(),
+        "refused_slides": f.refused_slides.len(),
         "rounds": r.stats.rounds,
         "wall_seconds": r.wall.as_secs_f64(),
         "nodes": nodes,
@@ -327,6 +387,17 @@ fn loads_csv(r: &RenderResult) -> String {
             c[2],
             r.bytes[id].iter().sum::<u64>()
         );
+    }
+    s
+}
+
+/// One row per node and interval: `time,node,interval,running,waiting,load`;
+/// then one row per committed slide: `time,node,slide,boundary`.
+fn history_csv(r: &RenderResult) -> String {
+    let mut s = String::from("time,node,interval,running,waiting,load\n");
+    for (at, l) in &r.frame.history {
+        let load = if l.waiting == 0 { f64::INFINITY } else { l.running as f64 / l.waiting as f64 };
+        s += &format!("{at},{},{},{},{},{load:.4}\n", l.node, l.interval, l.running, l.waiting);
     }
     s
 }

@@ -132,6 +132,33 @@ impl Partition {
     }
 }
 
+/// The paper's driving axis: the one along which the sphere counts of the
+/// node layers vary most (coefficient of variation; ties to the lowest axis).
+pub fn driving_axis(scene: &Scene, array: [u16; 3]) -> Result<u8, HostError> {
+    let mut best = (0u8, f64::NEG_INFINITY);
+    for axis in 0..3u8 {
+        let even = Partition::even(scene.grid, array, axis)?;
+        let layers = usize::from(array[usize::from(axis)]);
+        let mut counts = vec![0f64; layers];
+        for s in &scene.spheres {
+            // A sphere counts in every layer its bounding interval reaches.
+            let a = usize::from(axis);
+            for (i, w) in even.cuts[a].windows(2).enumerate() {
+                if s.center[a] + s.radius >= f64::from(w[0]) && s.center[a] - s.radius <= f64::from(w[1]) {
+                    counts[i] += 1.0;
+                }
+            }
+        }
+        let mean = counts.iter().sum::<f64>() / layers as f64;
+        let var = counts.iter().map(|c| (c - mean).powi(2)).sum::<f64>() / layers as f64;
+        let cv = if mean > 0.0 { var.sqrt() / mean } else { 0.0 };
+        if cv > best.1 + 1e-12 {
+            best = (axis, cv);
+        }
+    }
+    Ok(best.0)
+}
+
 /// Splits a `width` x `height` image into `n` tiles `[x0, y0, x1, y1)`, one per
 /// node: a grid of tiles as close to square as `n` allows.
 pub fn tiles(width: u16, height: u16, n: usize) -> Vec<[u16; 4]> {

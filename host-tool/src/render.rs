@@ -3,7 +3,7 @@
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
-use link_proto::{InitialRays, Message, RenderStart, SceneEnd};
+use link_proto::{Balance, InitialRays, Message, RenderStart, SceneEnd};
 use node_fw::pool::class_bound;
 use sim_board::{Board, HostEndpoint, RunStats, SimConfig, SimNode};
 
@@ -30,6 +30,10 @@ pub struct RenderOptions {
     pub level_depth: u16,
     /// Board costs and links.
     pub sim: SimConfig,
+    /// Sliding boundaries, or `None` for the static partition.
+    pub balance: Option<Balance>,
+    /// Driving axis; `None` picks the paper's (most varied sphere counts).
+    pub driving_axis: Option<u8>,
 }
 
 impl RenderOptions {
@@ -41,6 +45,8 @@ impl RenderOptions {
             initial: InitialRays::Parallel,
             level_depth: 4,
             sim: SimConfig::new(array),
+            balance: None,
+            driving_axis: None,
         }
     }
 }
@@ -66,9 +72,14 @@ pub fn render_sim(scene: &Scene, opts: &RenderOptions) -> Result<RenderResult, H
     if w == 0 || h == 0 {
         return Err(input(format!("image size {w}x{h} must be at least 1x1")));
     }
-    let partition = Partition::even(scene.grid, opts.array, 0)?;
+    let axis = match opts.driving_axis {
+        Some(a) if a > 2 => return Err(input(format!("driving axis {a} must be 0, 1 or 2"))),
+        Some(a) => a,
+        None => crate::partition::driving_axis(scene, opts.array)?,
+    };
+    let partition = Partition::even(scene.grid, opts.array, axis)?;
     partition.check_capacity(scene, SimNode::capacity())?;
-    let top = class_bound(opts.array, scene.max_depth, 0);
+    let top = class_bound(opts.array, scene.max_depth, opts.balance.map(|_| usize::from(axis)));
     let needed = (top + 1) * u32::from(opts.level_depth);
     if opts.level_depth == 0 || needed > u32::from(SimNode::capacity().rays) {
         return Err(input(format!(
@@ -135,6 +146,7 @@ fn broadcast(board: &mut Board, scene: &Scene, partition: &Partition, opts: &Ren
                 tile: *tile,
                 credit: PIXEL_CREDIT,
                 level_depth: opts.level_depth,
+                balance: opts.balance,
             }),
         );
     }

@@ -43,11 +43,12 @@ pub enum Message {
     Retire(Retire),
     /// Node to host and to driving-axis neighbours: running and waiting time of an interval.
     Load(LoadReport),
-    /// Node to its driving-axis neighbour: slide our shared boundary to `boundary`.
+    /// Giver to receiver: the slab up to `boundary` is coming; its spheres follow.
     SlideOffer(SlideOffer),
     /// Reply to a [`SlideOffer`]: accepted or refused, with the reason.
     SlideReply(SlideReply),
-    /// Node to the sibling of a slide: every sphere of the slab has been sent.
+    /// Giver to receiver: every sphere of the slab has been sent. Receiver to
+    /// host: the slide is committed (the host records boundary positions).
     SlideDone(SlideDone),
     /// Host to all nodes: the frame is complete; report final loads and go idle.
     Finish(Finish),
@@ -61,6 +62,20 @@ pub enum Message {
     RayReply(RayReply),
     /// Node to node: a pool slot freed; retry rays this node refused.
     Space,
+    /// Node to its driving-axis neighbour: give me the slab next to our boundary,
+    /// moving it to `boundary` (the lighter node asks the busier one).
+    SlideRequest(SlideOffer),
+}
+
+/// Dynamic load balancing by sliding boundaries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct Balance {
+    /// Ticks between load comparisons.
+    pub interval: u64,
+    /// A node under this load (running / waiting, Q16.16) may take a slab.
+    pub threshold: u32,
+    /// Cubes a boundary moves per slide (1 in the paper).
+    pub step: u16,
 }
 
 /// Answer to a ray passed over a link.
@@ -213,6 +228,8 @@ pub struct RenderStart {
     pub credit: u64,
     /// Pool slots per ray class level (the deadlock-free buffer pool's depth).
     pub level_depth: u16,
+    /// Sliding boundaries, or `None` for a static partition.
+    pub balance: Option<Balance>,
 }
 
 /// What a ray is for.
@@ -226,13 +243,15 @@ pub enum RayKind {
     Shadow,
 }
 
-/// Nearest hit found so far along a ray.
+/// Nearest hit found so far along a ray, with the sphere itself: whichever
+/// node ends up shading it need not hold the sphere (its rounded depth may fall
+/// past the node's boundary, or a slide may have moved the sphere away).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
 pub struct HitMsg {
     /// Ray parameter of the hit, Q16.16.
     pub t: i32,
-    /// Sphere id.
-    pub sphere: u16,
+    /// The sphere hit.
+    pub sphere: SphereMsg,
 }
 
 /// A ray with its exact traversal state. The digital line is fully determined by

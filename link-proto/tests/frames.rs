@@ -30,7 +30,11 @@ fn arb_ray() -> impl Strategy<Value = RayMsg> {
     (
         (any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[u16; 3]>(), any::<u32>()),
         (any::<[u32; 3]>(), any::<u64>(), 0u8..3, any::<u8>()),
-        (any::<Option<u16>>(), any::<Option<(i32, u16)>>(), any::<Option<i32>>()),
+        (
+            any::<Option<u16>>(),
+            proptest::option::of((any::<i32>(), any::<u16>(), arb_material())),
+            any::<Option<i32>>(),
+        ),
     )
         .prop_map(
             |((origin, dir, cell, pixel), (weight, credit, kind, depth), (ignore, best, t_max))| RayMsg {
@@ -43,7 +47,10 @@ fn arb_ray() -> impl Strategy<Value = RayMsg> {
                 kind: [RayKind::Primary, RayKind::Reflected, RayKind::Shadow][kind as usize],
                 depth,
                 ignore,
-                best: best.map(|(t, sphere)| HitMsg { t, sphere }),
+                best: best.map(|(t, id, material)| HitMsg {
+                    t,
+                    sphere: SphereMsg { id, center: [t, -t, t / 3], radius: t / 7, material },
+                }),
                 t_max,
                 class: credit as u16,
                 tag: pixel as u16,
@@ -110,6 +117,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 tile,
                 credit,
                 level_depth: frame as u16,
+                balance: (credit % 2 == 0).then_some(Balance { interval: credit, threshold: frame, step: 1 }),
             })
         ),
         arb_ray().prop_map(Message::Ray),
@@ -149,6 +157,8 @@ fn arb_message() -> impl Strategy<Value = Message> {
         (any::<u16>(), any::<bool>())
             .prop_map(|(tag, accepted)| Message::RayReply(RayReply { tag, accepted })),
         Just(Message::Space),
+        (any::<u32>(), any::<u16>())
+            .prop_map(|(interval, boundary)| Message::SlideRequest(SlideOffer { interval, boundary })),
     ]
 }
 
@@ -241,7 +251,22 @@ fn largest_message_fits_the_frame_buffer() {
         kind: RayKind::Shadow,
         depth: u8::MAX,
         ignore: Some(u16::MAX),
-        best: Some(HitMsg { t: i32::MIN, sphere: u16::MAX }),
+        best: Some(HitMsg {
+            t: i32::MIN,
+            sphere: SphereMsg {
+                id: u16::MAX,
+                center: [i32::MIN; 3],
+                radius: i32::MIN,
+                material: MaterialMsg {
+                    color: [u16::MAX; 3],
+                    ambient: u16::MAX,
+                    diffuse: u16::MAX,
+                    specular: u16::MAX,
+                    shininess: u8::MAX,
+                    reflect: u16::MAX,
+                },
+            },
+        }),
         t_max: Some(i32::MIN),
         class: u16::MAX,
         tag: u16::MAX,

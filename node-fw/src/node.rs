@@ -19,8 +19,9 @@
 
 use heapless::{Deque, Vec};
 use link_proto::{
-    Assign, Capacity, ErrorCode, ErrorReport, Hello, HitMsg, LightMsg, LoadReport, Message, PROTOCOL_VERSION,
-    RayKind, RayMsg, RayReply, RenderStart, Retire, SceneHeader, SphereMsg,
+    Assign, Balance, Capacity, ErrorCode, ErrorReport, Hello, HitMsg, LightMsg, LoadReport, MaterialMsg,
+    Message, PROTOCOL_VERSION, RayKind, RayMsg, RayReply, RenderStart, Retire, SceneHeader, SlideDone,
+    SlideOffer, SlideRefusal, SlideReply, SphereMsg,
 };
 
 use crate::camera::primary_line;
@@ -30,9 +31,11 @@ use crate::error::Error;
 use crate::geometry::{Direction, Grid, Line, Point};
 use crate::limits::Scalar;
 use crate::link::{Links, Port};
+use crate::load::{IntervalClock, Load, LoadMeter};
 use crate::pool::{RayPool, Stage, class_bound};
 use crate::route;
 use crate::shading::{Child, Q15_ONE, Scene, Surface};
+use crate::slide::{self, Incoming, Outgoing, Side, SlideState};
 use crate::sphere::{Hit, Material, Sphere};
 use crate::subregion::{Outcome, Query, Subregion, TraceStats};
 
@@ -64,33 +67,6 @@ impl Work {
     /// Whether anything was done.
     pub fn is_busy(&self) -> bool {
         *self != Work::default()
-    }
-}
-
-/// Running and waiting time, attributed from one poll to the next.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct LoadMeter {
-    last: u64,
-    busy: bool,
-    /// Time spent processing.
-    pub running: u64,
-    /// Time spent with nothing to process.
-    pub waiting: u64,
-}
-
-impl LoadMeter {
-    fn tick(&mut self, now: u64) {
-        let dt = now.saturating_sub(self.last);
-        if self.busy {
-            self.running += dt;
-        } else {
-            self.waiting += dt;
-        }
-        self.last = now;
-    }
-
-    fn restart(&mut self, now: u64) {
-        *self = LoadMeter { last: now, ..LoadMeter::default() };
     }
 }
 
@@ -143,7 +119,15 @@ pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> 
     load_due: Option<u32>,
     meter: LoadMeter,
     totals: Totals,
+    balance: Option<Balance>,
+    intervals: IntervalClock,
+    slide: SlideState,
+    /// Small control messages (loads, slide replies, notices) waiting for room.
+    control: Deque<(Port, Message), 16>,
 }
+
+/// Interval of the final load report sent after `Finish`.
+pub const FINAL_INTERVAL: u32 = u32::MAX;
 
 const NO_HEADER: SceneHeader =
     SceneHeader { grid: [1; 3], ambient: [0; 3], background: [0; 3], max_depth: 0 };
@@ -170,8 +154,12 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             hello_due: true,
             error_due: None,
             load_due: None,
-            meter: LoadMeter { last: 0, busy: false, running: 0, waiting: 0 },
+            meter: LoadMeter::new(),
             totals: Totals { rays: 0, sphere_tests: 0, cube_steps: 0, refused: 0 },
+            balance: None,
+            intervals: IntervalClock::idle(),
+            slide: SlideState::new(),
+            control: Deque::new(),
         }
     }
 
@@ -215,6 +203,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             || self.load_due.is_some()
             || self.space_due.iter().any(|&s| s)
             || self.replies.iter().any(|q| !q.is_empty())
+            || !self.control.is_empty()
+            || [self.slide.outgoing.lo, self.slide.outgoing.hi].iter().flatten().any(|o| !o.done)
     }
 
     /// Handles what has arrived, does one unit of work, and sends what it can.
@@ -224,10 +214,11 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         let mut work = Work::default();
         self.receive(links, &mut work);
         if self.phase == Phase::Rendering {
+            self.balance_tick(now);
             self.compute(&mut work);
         }
         self.transmit(links, &mut work);
-        self.meter.busy = work.is_busy();
+        self.meter.set_busy(work.is_busy());
         work
     }
 
@@ -266,8 +257,20 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             (Port::Host, Message::Light(l)) => self.take_light(l),
             (Port::Host, Message::SceneEnd(end)) => self.end_scene(end.spheres, end.lights),
             (Port::Host, Message::RenderStart(r)) => self.start_render(r),
-            (Port::Host, Message::Finish(f)) => self.load_due = Some(f.frame),
+            (Port::Host, Message::Finish(_)) => self.load_due = Some(FINAL_INTERVAL),
             (p, Message::Ray(ray)) if p != Port::Host => self.admit_ray(p, ray),
+            (
+                p,
+                m @ (Message::Load(_)
+                | Message::SlideRequest(_)
+                | Message::SlideOffer(_)
+                | Message::Sphere(_)
+                | Message::SlideDone(_)
+                | Message::SlideReply(_)),
+            ) if p != Port::Host => match self.side_of(p) {
+                Some(side) => self.handle_slide(p, side, m),
+                None => self.fail(ErrorCode::Unexpected, port as u32, 3),
+            },
             (p, Message::RayReply(r)) if p != Port::Host => self.take_reply(p, r),
             (p, Message::Space) if p != Port::Host => self.retry_refused(p),
             _ => self.fail(ErrorCode::Unexpected, port as u32, 0),
@@ -306,15 +309,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             return self.fail(ErrorCode::Unexpected, 0, 0);
         }
         self.spheres_seen += 1;
-        let m = s.material;
-        let material = Material {
-            color: m.color,
-            ambient: m.ambient,
-            diffuse: m.diffuse,
-            specular: m.specular,
-            shininess: m.shininess,
-            reflect: m.reflect,
-        };
+        let material = material(&s.material);
         let sphere = Point::from_bits(s.center)
             .and_then(|c| Sphere::new(s.id, c, Scalar::from_bits(s.radius), material, &self.grid));
         let sphere = sphere.and_then(|s| {
@@ -356,7 +351,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         let Some(assign) = self.assign.filter(|_| self.phase == Phase::Loaded) else {
             return self.fail(ErrorCode::Unexpected, 0, 0);
         };
-        let top = class_bound(assign.array, self.header.max_depth, 0);
+        let sliding = r.balance.map(|_| usize::from(assign.driving_axis));
+        let top = class_bound(assign.array, self.header.max_depth, sliding);
         if let Err(e) = self.pool.configure(top, r.level_depth) {
             return self.fail(ErrorCode::PoolCapacity, e.capacity, e.needed);
         }
@@ -364,7 +360,11 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.cursor = 0;
         self.outstanding = [0; 6];
         self.totals = Totals::default();
-        self.meter.restart(self.meter.last);
+        let now = self.meter.last();
+        self.meter.restart(now);
+        self.balance = r.balance;
+        self.intervals = r.balance.map_or(IntervalClock::idle(), |b| IntervalClock::new(now, b.interval));
+        self.slide = SlideState::new();
         self.phase = Phase::Rendering;
     }
 
@@ -463,7 +463,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         let Ok(mut walk) = DigitalLine::resume(&line, ray.cell.map(i32::from)) else {
             return self.fail(ErrorCode::BadRay, ray.pixel, 1);
         };
-        let mut best = ray.best.map(|h| Hit { t: Scalar::from_bits(h.t), sphere: h.sphere });
+        let carried = ray.best;
+        let mut best = carried.map(|h| Hit { t: Scalar::from_bits(h.t), sphere: h.sphere.id });
         let query = Query {
             ignore: ray.ignore,
             t_max: ray.t_max.map(Scalar::from_bits),
@@ -477,12 +478,22 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.totals.rays += 1;
         self.totals.cube_steps += stats.cube_steps;
         self.totals.sphere_tests += stats.sphere_tests;
+        // A hit found here names a sphere this node holds; one carried in keeps
+        // the sphere it came with.
+        ray.best = match best {
+            Some(h) if carried.is_none_or(|c| c.t != h.t.to_bits() || c.sphere.id != h.sphere) => {
+                match self.region.sphere(h.sphere) {
+                    Some(s) => Some(HitMsg { t: h.t.to_bits(), sphere: sphere_msg(s) }),
+                    None => return self.fail(ErrorCode::BadRay, ray.pixel, 5),
+                }
+            }
+            _ => carried,
+        };
         let stage = match outcome {
             Outcome::Leave => {
                 ray.cell = walk.cell().map(|c| c as u16);
-                ray.best = best.map(|h| HitMsg { t: h.t.to_bits(), sphere: h.sphere });
                 let driving = self.assign.map_or(0, |a| usize::from(a.driving_axis));
-                match route::toward(&self.region.bounds(), walk.cell(), driving) {
+                match route::toward(&self.region.owned(), walk.cell(), driving) {
                     Some(port) => Stage::Outbound(port),
                     None => return self.fail(ErrorCode::BadRay, ray.pixel, 2),
                 }
@@ -493,7 +504,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 Stage::Retire(retire(&ray, rgb, ray.credit, 0))
             }
             Outcome::Blocked => Stage::Retire(retire(&ray, [0; 3], ray.credit, 0)),
-            Outcome::Hit(hit) => match self.begin_shading(&ray, &line, hit) {
+            Outcome::Hit(_) => match self.begin_shading(&ray, &line) {
                 Some(stage) => stage,
                 None => return self.fail(ErrorCode::BadRay, ray.pixel, 3),
             },
@@ -504,11 +515,22 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
     }
 
+    /// The sphere of a ray's best hit, from the ray itself.
+    fn hit_sphere(&self, ray: &RayMsg) -> Option<(Scalar, Sphere)> {
+        let hit = ray.best?;
+        let s = hit.sphere;
+        let center = Point::from_bits(s.center).ok()?;
+        let sphere =
+            Sphere::new(s.id, center, Scalar::from_bits(s.radius), material(&s.material), &self.grid).ok()?;
+        Some((Scalar::from_bits(hit.t), sphere))
+    }
+
     /// Counts the children of a hit and folds the ambient term and any child
     /// resolved at once into the parent's contribution.
-    fn begin_shading(&self, ray: &RayMsg, line: &Line, hit: Hit) -> Option<Stage> {
-        let sphere = self.region.sphere(hit.sphere)?;
-        let surface = Surface::at(line, hit.t, sphere)?;
+    fn begin_shading(&self, ray: &RayMsg, line: &Line) -> Option<Stage> {
+        let (t, sphere) = self.hit_sphere(ray)?;
+        let sphere = &sphere;
+        let surface = Surface::at(line, t, sphere)?;
         let scene = self.scene();
         let mut rgb = scene.ambient(ray, sphere);
         let mut children = 0u8;
@@ -519,25 +541,24 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 None => {}
             }
         }
-        let hit = HitMsg { t: hit.t.to_bits(), sphere: hit.sphere };
         if children == 0 {
             return Some(Stage::Retire(retire(ray, rgb, ray.credit, 0)));
         }
         let share = ray.credit / (u64::from(children) + 1);
-        Some(Stage::Shade { hit, next: 0, children, share, rgb })
+        Some(Stage::Shade { next: 0, children, share, rgb })
     }
 
     /// Spawns the hit's children while the pool admits them; retires the parent
     /// once all are out.
     fn shade(&mut self, i: u16, work: &mut Work) {
         let Some(slot) = self.pool.get(i).copied() else { return };
-        let Stage::Shade { hit, mut next, children, share, rgb } = slot.stage else { return };
+        let Stage::Shade { mut next, children, share, rgb } = slot.stage else { return };
         let ray = slot.ray;
         let Ok(line) = Self::line_of(&ray) else { return self.fail(ErrorCode::BadRay, ray.pixel, 4) };
-        let Some(sphere) = self.region.sphere(hit.sphere).copied() else {
+        let Some((t, sphere)) = self.hit_sphere(&ray) else {
             return self.fail(ErrorCode::BadRay, ray.pixel, 5);
         };
-        let Some(surface) = Surface::at(&line, Scalar::from_bits(hit.t), &sphere) else {
+        let Some(surface) = Surface::at(&line, t, &sphere) else {
             return self.fail(ErrorCode::BadRay, ray.pixel, 6);
         };
         work.shades += 1;
@@ -552,7 +573,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             next += 1;
         }
         let stage = if next < candidates {
-            Stage::Shade { hit, next, children, share, rgb }
+            Stage::Shade { next, children, share, rgb }
         } else {
             let own = ray.credit - u64::from(children) * share;
             Stage::Retire(retire(&ray, rgb, own, children))
@@ -600,6 +621,266 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
     }
 
+    fn driving_axis(&self) -> usize {
+        self.assign.map_or(0, |a| usize::from(a.driving_axis))
+    }
+
+    /// The side a driving-axis port faces, `None` for other ports.
+    fn side_of(&self, port: Port) -> Option<Side> {
+        let d = self.driving_axis();
+        match port {
+            p if p == Port::toward(d, true) => Some(Side::Hi),
+            p if p == Port::toward(d, false) => Some(Side::Lo),
+            _ => None,
+        }
+    }
+
+    fn has_neighbour(&self, side: Side) -> bool {
+        let d = self.driving_axis();
+        self.assign.is_some_and(|a| {
+            let (c, n) = (a.coord.get(d).copied().unwrap_or(0), a.array.get(d).copied().unwrap_or(1));
+            match side {
+                Side::Lo => c > 0,
+                Side::Hi => c + 1 < n,
+            }
+        })
+    }
+
+    /// Queues a control message; loads beyond half the queue are dropped (a
+    /// newer one follows), everything else always fits (at most one per side).
+    fn queue_control(&mut self, port: Port, msg: Message) {
+        let is_load = matches!(msg, Message::Load(_));
+        if is_load && self.control.len() >= self.control.capacity() / 2 {
+            return;
+        }
+        if self.control.push_back((port, msg)).is_err() {
+            self.fail(ErrorCode::Unexpected, port as u32, 9);
+        }
+    }
+
+    /// Ends load intervals: reports them and decides this node's high boundary.
+    fn balance_tick(&mut self, now: u64) {
+        let Some((k, load)) = self.intervals.due(now, &self.meter) else { return };
+        self.slide.own_load = Some((k, load));
+        let report = LoadReport {
+            node: self.id,
+            interval: k,
+            running: load.running,
+            waiting: load.waiting,
+            rays: self.totals.rays,
+            sphere_tests: self.totals.sphere_tests,
+            cube_steps: self.totals.cube_steps,
+            refused: self.totals.refused,
+        };
+        self.queue_control(Port::Host, Message::Load(report));
+        if self.has_neighbour(Side::Lo) {
+            self.queue_control(Port::toward(self.driving_axis(), false), Message::Load(report));
+        }
+        self.decide();
+    }
+
+    /// The paper's rule for the boundary on this node's high side: if one load is
+    /// lower and under the threshold, the boundary slides one step toward the busier node.
+    fn decide(&mut self) {
+        let (Some(balance), Some((k, own))) = (self.balance, self.slide.own_load) else { return };
+        let Some((kn, theirs)) = self.slide.neighbour_load[Side::Hi] else { return };
+        if k != kn || self.slide.busy(Side::Hi) || !self.has_neighbour(Side::Hi) {
+            return;
+        }
+        self.slide.neighbour_load[Side::Hi] = None;
+        let d = self.driving_axis();
+        let (lo, hi) = self.extent_after_giving();
+        let step = balance.step.max(1);
+        if own.lighter_than(&theirs) && own.under(balance.threshold) {
+            let offer = SlideOffer { interval: k, boundary: hi.saturating_add(step) };
+            self.slide.requested[Side::Hi] = true;
+            self.queue_control(Port::toward(d, true), Message::SlideRequest(offer));
+        } else if theirs.lighter_than(&own) && theirs.under(balance.threshold) && hi > lo + step {
+            self.start_giving(Side::Hi, hi - step);
+        }
+    }
+
+    /// The node's extent along the driving axis once the slabs it is giving are gone.
+    fn extent_after_giving(&self) -> (u16, u16) {
+        let d = self.driving_axis();
+        let owned = self.region.owned();
+        let lo = self.slide.outgoing[Side::Lo].map_or(owned.lo.get(d).copied().unwrap_or(0), |o| o.boundary);
+        let hi = self.slide.outgoing[Side::Hi].map_or(owned.hi.get(d).copied().unwrap_or(0), |o| o.boundary);
+        (lo, hi)
+    }
+
+    fn start_giving(&mut self, side: Side, boundary: u16) {
+        self.slide.outgoing[side] =
+            Some(Outgoing { boundary, offered: false, next_id: 0, sent: 0, done: false });
+    }
+
+    fn handle_slide(&mut self, port: Port, side: Side, msg: Message) {
+        let (lo, hi) = self.extent_after_giving();
+        match msg {
+            Message::Load(l) => {
+                self.slide.neighbour_load[side] =
+                    Some((l.interval, Load { running: l.running, waiting: l.waiting }));
+                self.decide();
+            }
+            Message::SlideRequest(o) => {
+                // The neighbour is lighter and asks for our slab on this side.
+                let keeps_a_layer = match side {
+                    Side::Lo => o.boundary > lo && o.boundary < hi,
+                    Side::Hi => o.boundary < hi && o.boundary > lo,
+                };
+                let refused = if self.slide.busy(side) {
+                    Some(SlideRefusal::Busy)
+                } else if !keeps_a_layer {
+                    Some(SlideRefusal::Empty)
+                } else {
+                    None
+                };
+                match refused {
+                    Some(r) => self.queue_control(
+                        port,
+                        Message::SlideReply(SlideReply { boundary: o.boundary, refused: Some(r) }),
+                    ),
+                    None => self.start_giving(side, o.boundary),
+                }
+            }
+            Message::SlideOffer(o) => self.begin_receiving(port, side, o.boundary),
+            Message::Sphere(s) => self.receive_slab_sphere(side, s),
+            Message::SlideDone(done) => self.finish_receiving(port, side, done),
+            Message::SlideReply(r) => self.slide_answered(side, r),
+            _ => self.fail(ErrorCode::Unexpected, port as u32, 4),
+        }
+    }
+
+    fn begin_receiving(&mut self, port: Port, side: Side, boundary: u16) {
+        if self.slide.incoming[side].is_some() || self.slide.outgoing[side].is_some() {
+            return self.fail(ErrorCode::Unexpected, port as u32, 5);
+        }
+        self.slide.requested[side] = false;
+        let d = self.driving_axis();
+        let old_storage = self.region.bounds();
+        let grown = slide::with_face(old_storage, d, side, boundary);
+        let failed = self.region.set_storage(grown).err();
+        self.slide.incoming[side] = Some(Incoming { boundary, old_storage, received: 0, failed });
+    }
+
+    fn receive_slab_sphere(&mut self, side: Side, s: SphereMsg) {
+        let Some(mut incoming) = self.slide.incoming[side] else {
+            return self.fail(ErrorCode::Unexpected, 0, 6);
+        };
+        incoming.received += 1;
+        if incoming.failed.is_none() {
+            let sphere = Point::from_bits(s.center).and_then(|c| {
+                Sphere::new(s.id, c, Scalar::from_bits(s.radius), material(&s.material), &self.grid)
+            });
+            let inserted = match sphere {
+                Ok(sphere) => self.region.insert(sphere).map(|_| ()).map_err(|r| r.error),
+                Err(e) => Err(e),
+            };
+            if let Err(e) = inserted {
+                incoming.failed = Some(e);
+                // Shrinking this side back always fits: it only drops the slab's spheres.
+                let d = self.driving_axis();
+                let face = match side {
+                    Side::Lo => incoming.old_storage.lo.get(d),
+                    Side::Hi => incoming.old_storage.hi.get(d),
+                };
+                let back = slide::with_face(self.region.bounds(), d, side, face.copied().unwrap_or(0));
+                if let Err(e) = self.region.set_storage(back) {
+                    self.fail_with(e);
+                }
+            }
+        }
+        self.slide.incoming[side] = Some(incoming);
+    }
+
+    fn finish_receiving(&mut self, port: Port, side: Side, done: SlideDone) {
+        let Some(incoming) = self.slide.incoming[side].take() else {
+            return self.fail(ErrorCode::Unexpected, port as u32, 7);
+        };
+        if incoming.received != done.spheres {
+            return self.fail(ErrorCode::SceneCount, done.spheres, incoming.received);
+        }
+        let d = self.driving_axis();
+        let owned = slide::with_face(self.region.owned(), d, side, incoming.boundary);
+        let outcome = match incoming.failed {
+            None => self.region.set_owned(owned),
+            Some(e) => Err(e),
+        };
+        let refused = outcome.is_err().then_some(SlideRefusal::Capacity);
+        let reply = SlideReply { boundary: incoming.boundary, refused };
+        self.queue_control(port, Message::SlideReply(reply));
+        if refused.is_some() {
+            self.slide.refused += 1;
+            self.queue_control(Port::Host, Message::SlideReply(reply));
+        } else {
+            self.slide.committed += 1;
+            let note = SlideDone { boundary: incoming.boundary, spheres: done.spheres };
+            self.queue_control(Port::Host, Message::SlideDone(note));
+        }
+    }
+
+    fn slide_answered(&mut self, side: Side, reply: SlideReply) {
+        if let Some(out) = self.slide.outgoing[side].filter(|o| o.done) {
+            self.slide.outgoing[side] = None;
+            if reply.refused.is_none() {
+                let d = self.driving_axis();
+                let owned = slide::with_face(self.region.owned(), d, side, out.boundary);
+                let storage = slide::with_face(self.region.bounds(), d, side, out.boundary);
+                if let Err(e) = self.region.set_owned(owned).and_then(|()| self.region.set_storage(storage)) {
+                    self.fail_with(e);
+                }
+            }
+        } else if self.slide.requested[side] {
+            self.slide.requested[side] = false;
+        } else {
+            self.fail(ErrorCode::Unexpected, side as u32, 8);
+        }
+    }
+
+    /// Sends the offer, the spheres and the end of every slab being given, as
+    /// far as the links take them.
+    fn stream_slabs<L: Links>(
+        &mut self,
+        links: &mut L,
+        send: &mut impl FnMut(&mut L, Port, Message) -> bool,
+    ) {
+        let d = self.driving_axis();
+        for side in [Side::Lo, Side::Hi] {
+            let Some(mut out) = self.slide.outgoing[side].filter(|o| !o.done) else { continue };
+            let port = Port::toward(d, side == Side::Hi);
+            if !out.offered {
+                out.offered = send(
+                    links,
+                    port,
+                    Message::SlideOffer(SlideOffer { interval: 0, boundary: out.boundary }),
+                );
+            }
+            let slab = slide::slab(self.region.owned(), d, side, out.boundary);
+            let mut blocked = !out.offered;
+            while !blocked {
+                let spheres = self.region.spheres();
+                let at = spheres.partition_point(|s| u32::from(s.id()) < out.next_id);
+                let Some(sphere) = spheres.get(at).copied() else { break };
+                let mut touches = false;
+                slab.for_each_surface_cube(&sphere, |_| touches = true);
+                if touches && !send(links, port, Message::Sphere(sphere_msg(&sphere))) {
+                    blocked = true;
+                } else {
+                    out.sent += u32::from(touches);
+                    out.next_id = u32::from(sphere.id()) + 1;
+                }
+            }
+            if !blocked {
+                out.done = send(
+                    links,
+                    port,
+                    Message::SlideDone(SlideDone { boundary: out.boundary, spheres: out.sent }),
+                );
+            }
+            self.slide.outgoing[side] = Some(out);
+        }
+    }
+
     fn transmit<L: Links>(&mut self, links: &mut L, work: &mut Work) {
         let mut send = |links: &mut L, port: Port, msg: Message| {
             let ok = links.try_send(port, msg).is_ok();
@@ -630,6 +911,13 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             }
         }
         self.send_rays(links, &mut send);
+        while let Some((port, msg)) = self.control.front().cloned() {
+            if !send(links, port, msg) {
+                break;
+            }
+            self.control.pop_front();
+        }
+        self.stream_slabs(links, &mut send);
         if let Some(frame) = self.load_due {
             let report = LoadReport {
                 node: self.id,
@@ -677,6 +965,34 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 _ => {}
             }
         }
+    }
+}
+
+fn material(m: &MaterialMsg) -> Material {
+    Material {
+        color: m.color,
+        ambient: m.ambient,
+        diffuse: m.diffuse,
+        specular: m.specular,
+        shininess: m.shininess,
+        reflect: m.reflect,
+    }
+}
+
+fn sphere_msg(s: &Sphere) -> SphereMsg {
+    let m = s.material();
+    SphereMsg {
+        id: s.id(),
+        center: s.center(),
+        radius: s.radius().to_bits(),
+        material: MaterialMsg {
+            color: m.color,
+            ambient: m.ambient,
+            diffuse: m.diffuse,
+            specular: m.specular,
+            shininess: m.shininess,
+            reflect: m.reflect,
+        },
     }
 }
 

@@ -9,26 +9,39 @@
 //! so does every ray, however small `depth` is. Rays that cannot be admitted
 //! stay with their sender (see [`crate::node`]): the pool hands them back.
 
-use link_proto::{HitMsg, RayMsg, Retire};
+use link_proto::{RayMsg, Retire};
 
 use crate::link::Port;
 
 /// Largest number of class levels a pool supports.
-pub const MAX_LEVELS: usize = 512;
+pub const MAX_LEVELS: usize = 1024;
 
 /// Upper bound on the class of any ray in an `array` of nodes with at most
-/// `max_depth` reflections and `forward_hops` extra hops per boundary crossing
-/// (boundary discrepancy after sliding; 0 for a static partition).
+/// `max_depth` reflections; `sliding` names the driving axis when boundaries
+/// slide.
 ///
 /// A ray's life: routing from its creator to its entry node (at most `h`
-/// hops), then per generation a walk (each axis is crossed monotonically, so at
-/// most `h` crossings, each possibly followed by `forward_hops` forwards) and one
-/// spawn; `max_depth` reflections plus one shadow generation.
-pub fn class_bound(array: [u16; 3], max_depth: u8, forward_hops: u16) -> u32 {
-    let h: u32 = array.iter().map(|&n| u32::from(n.max(1)) - 1).sum();
-    let walk = h * (1 + u32::from(forward_hops));
+/// hops), then per generation a walk and one spawn, for `max_depth`
+/// reflections plus one shadow generation. A walk crosses each axis
+/// monotonically, so at most `h` node boundaries. With sliding boundaries, a
+/// crossing of a non-driving axis may land beside the owner and be forwarded
+/// along the driving axis (at most `D - 1` hops, the paper's Fig. 6), and a
+/// boundary that moves while a ray is in flight costs a forward more: `D` is
+/// allowed per walk for that. Classes above the bound (only from unusually
+/// many boundary moves during one walk) share the top level.
+pub fn class_bound(array: [u16; 3], max_depth: u8, sliding: Option<usize>) -> u32 {
+    let span = |n: u16| u32::from(n.max(1)) - 1;
+    let h: u32 = array.iter().map(|&n| span(n)).sum();
+    let forwards = match sliding {
+        Some(d) => {
+            let along = array.get(d).copied().unwrap_or(1);
+            let across: u32 = array.iter().enumerate().filter(|(a, _)| *a != d).map(|(_, &n)| span(n)).sum();
+            across * span(along) + u32::from(along)
+        }
+        None => 0,
+    };
     let generations = u32::from(max_depth) + 2;
-    h + generations * walk + generations - 1
+    h + generations * (h + forwards) + generations - 1
 }
 
 /// What a pooled ray is waiting for.
@@ -36,10 +49,9 @@ pub fn class_bound(array: [u16; 3], max_depth: u8, forward_hops: u16) -> u32 {
 pub enum Stage {
     /// To be traced through this node's subregion.
     Trace,
-    /// Hit found; children `next..` still to spawn, each with `share` credit.
+    /// Hit found (the ray's `best`); children `next..` still to spawn, each
+    /// with `share` credit.
     Shade {
-        /// The hit.
-        hit: HitMsg,
         /// Next child candidate (lights in order, then the reflection).
         next: u8,
         /// Children the hit spawns in all.
@@ -234,9 +246,7 @@ impl<const P: usize> RayPool<P> {
     }
 
     fn free_level(&self, class: u16) -> Option<u16> {
-        if class > self.top {
-            return None;
-        }
+        let class = class.min(self.top);
         (0..=class).rev().find(|&l| self.used_per_level.get(usize::from(l)).is_some_and(|&u| u < self.depth))
     }
 }

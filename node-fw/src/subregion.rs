@@ -77,7 +77,10 @@ pub struct TraceStats {
 #[derive(Debug, Clone)]
 pub struct Subregion<const S: usize, const R: usize, const C: usize> {
     grid: Grid,
+    /// Cubes whose sphere lists are kept (storage).
     bounds: CubeBox,
+    /// Cubes this node traces in (within `bounds`; smaller while a slab arrives).
+    owned: CubeBox,
     spheres: Vec<Sphere, S>,
     mailbox: [u32; S],
     stamp: u32,
@@ -103,6 +106,7 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         Self {
             grid: Grid::UNIT,
             bounds: CubeBox { lo: [0; 3], hi: [0; 3] },
+            owned: CubeBox { lo: [0; 3], hi: [0; 3] },
             spheres: Vec::new(),
             mailbox: [0; S],
             stamp: 0,
@@ -130,8 +134,52 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         }
         self.grid = grid;
         self.bounds = bounds;
+        self.owned = bounds;
         self.clear();
         Ok(())
+    }
+
+    /// Changes the storage box, keeping the spheres that touch it and listing them
+    /// in its cubes. Fails without any change if the node cannot hold the result.
+    pub fn set_storage(&mut self, bounds: CubeBox) -> Result<(), Error> {
+        let cubes = bounds.volume();
+        if cubes > C as u64 {
+            let needed = u32::try_from(cubes).unwrap_or(u32::MAX);
+            return Err(Error::CubeCapacity { capacity: C as u32, needed });
+        }
+        let mut total = 0usize;
+        for s in &self.spheres {
+            bounds.for_each_surface_cube(s, |_| total += 1);
+        }
+        if total > R {
+            let needed = u32::try_from(total).unwrap_or(u32::MAX);
+            return Err(Error::RefCapacity { capacity: R as u32, needed });
+        }
+        self.spheres.retain(|s| {
+            let mut touches = false;
+            bounds.for_each_surface_cube(s, |_| touches = true);
+            touches
+        });
+        self.bounds = bounds;
+        self.ref_total = total;
+        self.indexed = false;
+        Ok(())
+    }
+
+    /// Changes the box this node traces in (must lie within the storage box).
+    pub fn set_owned(&mut self, owned: CubeBox) -> Result<(), Error> {
+        let inside = (0..3)
+            .all(|a| owned.lo.get(a) >= self.bounds.lo.get(a) && owned.hi.get(a) <= self.bounds.hi.get(a));
+        if !inside || owned.volume() == 0 {
+            return Err(Error::OutOfRange(Field::Subregion));
+        }
+        self.owned = owned;
+        Ok(())
+    }
+
+    /// The box this node traces in.
+    pub fn owned(&self) -> CubeBox {
+        self.owned
     }
 
     /// Drops every sphere.
@@ -141,7 +189,7 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         self.indexed = false;
     }
 
-    /// The box of cubes.
+    /// The storage box of cubes.
     pub fn bounds(&self) -> CubeBox {
         self.bounds
     }
@@ -167,9 +215,9 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         self.ref_total
     }
 
-    /// Whether `cell` lies in the box.
+    /// Whether `cell` lies in the box this node traces in.
     pub fn contains(&self, cell: [i32; 3]) -> bool {
-        self.bounds.index(cell).is_some()
+        self.owned.index(cell).is_some()
     }
 
     /// Keeps `sphere` if it touches the box: `Ok(true)` kept, `Ok(false)` not ours.
@@ -179,6 +227,10 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         self.bounds.for_each_surface_cube(&sphere, |_| count += 1);
         if count == 0 {
             return Ok(false);
+        }
+        if self.sphere(sphere.id()).is_some() {
+            // Already kept (a slab's spheres may include ours).
+            return Ok(true);
         }
         if self.spheres.is_full() {
             let error = Error::SphereCapacity { capacity: S as u32 };
@@ -215,7 +267,8 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         self.ensure_index();
         let stamp = self.next_stamp();
         loop {
-            let Some(cube) = self.bounds.index(walk.cell()) else {
+            let cell = walk.cell();
+            let Some(cube) = self.bounds.index(cell).filter(|_| self.owned.index(cell).is_some()) else {
                 return Outcome::Leave;
             };
             if let Some(done) = self.test_cube(cube, line, best, query, stamp, stats) {

@@ -119,3 +119,51 @@ fn capacity_overflow_names_the_node() {
     assert!(msg.contains("node 0 (0,0,0)") && msg.contains("3000 spheres"), "{msg}");
     assert_eq!(err.exit_code(), 2);
 }
+
+#[test]
+fn sliding_boundaries_keep_the_image_bit_identical() {
+    let s = scene(0.6, 3);
+    let size = [40, 32];
+    let want = direct::render(&s, size[0], size[1]).unwrap();
+    for (array, initial, axis) in [
+        ([4, 4, 4], InitialRays::Parallel, None),
+        ([3, 2, 5], InitialRays::EyeNode, Some(2)),
+        ([2, 2, 2], InitialRays::Parallel, Some(1)),
+        ([8, 1, 1], InitialRays::Parallel, Some(0)),
+    ] {
+        let mut opts = RenderOptions::new(array);
+        opts.size = size;
+        opts.initial = initial;
+        opts.driving_axis = axis;
+        // Short intervals and a high threshold: boundaries move often.
+        opts.balance = Some(link_proto::Balance { interval: 20_000, threshold: 50 << 16, step: 1 });
+        let r = render_sim(&s, &opts).unwrap_or_else(|e| panic!("{array:?}: {e}"));
+        assert_eq!(r.frame.rays_created, r.frame.rays_terminated, "{array:?}");
+        assert!(r.frame.slides.len() > 5, "{array:?}: only {} slides", r.frame.slides.len());
+        assert!(r.frame.sums == want.sums, "{array:?}: sliding changed the image");
+    }
+}
+
+#[test]
+fn a_slide_the_receiver_cannot_hold_is_refused_and_reported() {
+    // Dense spheres: a node that takes a slab would exceed its sphere capacity.
+    let mut s = Scene::random(10, 9, 1.0, [16; 3]).unwrap();
+    s.spheres = (0..3600)
+        .map(|i| SphereDesc {
+            center: [0.5 + (i % 15) as f64, 0.5 + (i / 15 % 15) as f64, 0.5 + (i / 225) as f64],
+            radius: 0.3,
+            ..s.spheres[0]
+        })
+        .collect();
+    s.validate().unwrap();
+    let size = [24, 24];
+    let mut opts = RenderOptions::new([2, 1, 1]);
+    opts.size = size;
+    opts.driving_axis = Some(0);
+    opts.balance = Some(link_proto::Balance { interval: 5_000, threshold: 1000 << 16, step: 1 });
+    let r = render_sim(&s, &opts).expect("a refused slide is not a failure");
+    assert!(!r.frame.refused_slides.is_empty(), "capacity refusals were reported");
+    assert_eq!(r.frame.rays_created, r.frame.rays_terminated);
+    let want = direct::render(&s, size[0], size[1]).unwrap();
+    assert!(r.frame.sums == want.sums, "a refused slide changed the image");
+}

@@ -1,0 +1,156 @@
+//! Sliding boundary surfaces: moving a slab of cubes between two nodes that
+//! share a boundary perpendicular to the driving axis.
+//!
+//! The node on the low side of a boundary decides for it, from both nodes'
+//! loads of the same interval. The busier node gives: it streams every sphere
+//! touching the slab, then `SlideDone`. The receiver grows its *storage* box
+//! first and takes ownership of the slab only once it holds all of them; the
+//! giver drops the slab when the receiver's acceptance arrives. In between,
+//! both own the slab and both hold all of its spheres, so a ray is traced
+//! correctly wherever it is. A receiver that cannot hold the slab shrinks
+//! back and refuses: nothing is half done.
+
+use crate::cube_box::CubeBox;
+use crate::error::Error;
+use crate::load::Load;
+
+/// Which side of the node along the driving axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    /// Toward lower coordinates.
+    Lo = 0,
+    /// Toward higher coordinates.
+    Hi = 1,
+}
+
+impl Side {
+    /// Index 0 or 1.
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// One value per side, indexed by [`Side`] (no panic path).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PerSide<T> {
+    /// The low side.
+    pub lo: T,
+    /// The high side.
+    pub hi: T,
+}
+
+impl<T> core::ops::Index<Side> for PerSide<T> {
+    type Output = T;
+    fn index(&self, side: Side) -> &T {
+        match side {
+            Side::Lo => &self.lo,
+            Side::Hi => &self.hi,
+        }
+    }
+}
+
+impl<T> core::ops::IndexMut<Side> for PerSide<T> {
+    fn index_mut(&mut self, side: Side) -> &mut T {
+        match side {
+            Side::Lo => &mut self.lo,
+            Side::Hi => &mut self.hi,
+        }
+    }
+}
+
+/// A slab this node is giving away.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Outgoing {
+    /// New position of the boundary.
+    pub boundary: u16,
+    /// `SlideOffer` sent.
+    pub offered: bool,
+    /// Next sphere id to consider sending.
+    pub next_id: u32,
+    /// Spheres sent.
+    pub sent: u32,
+    /// `SlideDone` sent; waiting for the receiver's reply.
+    pub done: bool,
+}
+
+/// A slab this node is receiving.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Incoming {
+    /// New position of the boundary.
+    pub boundary: u16,
+    /// Storage box before the slide, restored on refusal.
+    pub old_storage: CubeBox,
+    /// Spheres received.
+    pub received: u32,
+    /// Why the slab cannot be taken, once known.
+    pub failed: Option<Error>,
+}
+
+/// Slide state of both sides of a node.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SlideState {
+    /// Slabs being given, per side.
+    pub outgoing: PerSide<Option<Outgoing>>,
+    /// Slabs being received, per side.
+    pub incoming: PerSide<Option<Incoming>>,
+    /// A request sent to the neighbour on this side, not yet answered.
+    pub requested: PerSide<bool>,
+    /// The neighbour's latest load report per side: (interval, load).
+    pub neighbour_load: PerSide<Option<(u32, Load)>>,
+    /// This node's latest interval load.
+    pub own_load: Option<(u32, Load)>,
+    /// Slides committed as receiver this frame.
+    pub committed: u32,
+    /// Slides refused as receiver (capacity) this frame.
+    pub refused: u32,
+}
+
+impl SlideState {
+    /// No slide in progress, no loads known.
+    pub const fn new() -> Self {
+        Self {
+            outgoing: PerSide { lo: None, hi: None },
+            incoming: PerSide { lo: None, hi: None },
+            requested: PerSide { lo: false, hi: false },
+            neighbour_load: PerSide { lo: None, hi: None },
+            own_load: None,
+            committed: 0,
+            refused: 0,
+        }
+    }
+
+    /// Whether a slide is in progress on `side`.
+    pub fn busy(&self, side: Side) -> bool {
+        self.outgoing[side].is_some() || self.incoming[side].is_some() || self.requested[side]
+    }
+}
+
+/// `b` with its face on `side` of `axis` moved to `position`.
+pub fn with_face(b: CubeBox, axis: usize, side: Side, position: u16) -> CubeBox {
+    let mut out = b;
+    let face = match side {
+        Side::Lo => out.lo.get_mut(axis),
+        Side::Hi => out.hi.get_mut(axis),
+    };
+    if let Some(f) = face {
+        *f = position;
+    }
+    out
+}
+
+/// The slab between a box's face on `side` and `boundary` (the cubes that move).
+pub fn slab(owned: CubeBox, axis: usize, side: Side, boundary: u16) -> CubeBox {
+    let face = match side {
+        Side::Lo => owned.lo.get(axis),
+        Side::Hi => owned.hi.get(axis),
+    }
+    .copied()
+    .unwrap_or(0);
+    let (a, b) = if face < boundary { (face, boundary) } else { (boundary, face) };
+    let mut out = owned;
+    if let (Some(lo), Some(hi)) = (out.lo.get_mut(axis), out.hi.get_mut(axis)) {
+        *lo = a;
+        *hi = b;
+    }
+    out
+}
