@@ -29,5 +29,8 @@ cargo build -p node-fw --target "$THUMB" --release --locked
 step "node-fw's dependencies on $THUMB are all no_std"
 scripts/check-no-std.sh "$THUMB"
 
+step "the paper's experiments, reduced (host-tool bench paper --quick)"
+cargo run --release --locked -p host-tool -- bench paper --quick --out target/paper-quick
+
 step "tests"
 cargo test --workspace --locked

@@ -10,7 +10,7 @@ use host_tool::output::{png, write_atomic};
 use host_tool::render::{RenderOptions, RenderResult, render_sim};
 use host_tool::scene::Scene;
 use host_tool::{direct, reference};
-use link_proto::{Balance, InitialRays};
+use link_proto::{Balance, InitialRays, SlidePolicy};
 use serde_json::json;
 
 #[derive(Parser)]
@@ -42,6 +42,18 @@ enum BenchCommand {
     /// Host rays/s of the in-memory board at several array sizes, and of a plain
     /// single-threaded loop over the same kernels (the node machinery's overhead).
     Board(BoardBenchArgs),
+    /// The paper's experiments (Figs. 7-10): CSV tables and PNG plots.
+    Paper(PaperArgs),
+}
+
+#[derive(Args)]
+struct PaperArgs {
+    /// Output directory.
+    #[arg(long, value_name = "DIR", default_value = "paper")]
+    out: PathBuf,
+    /// A reduced run (a minute or two) for CI.
+    #[arg(long)]
+    quick: bool,
 }
 
 #[derive(Args)]
@@ -95,9 +107,19 @@ enum BalanceMode {
 }
 
 #[derive(Clone, Copy, ValueEnum)]
+enum PolicyChoice {
+    /// One cube when one load is lower and under the threshold (the paper's).
+    Paper,
+    /// Proportional to the running-time difference, under-relaxed, capped, with a dead band.
+    Proportional,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
 enum AxisChoice {
-    /// The axis along which the sphere counts of the node layers vary most.
+    /// The axis along which the sphere counts of the node layers vary most (the paper's rule).
     Auto,
+    /// The axis most aligned with the camera's view direction.
+    View,
     /// x.
     X,
     /// y.
@@ -122,9 +144,15 @@ struct RenderArgs {
     /// Driving axis of the sliding boundaries.
     #[arg(long, value_enum, default_value = "auto")]
     driving_axis: AxisChoice,
+    /// How far a boundary moves per slide.
+    #[arg(long, value_enum, default_value = "paper")]
+    policy: PolicyChoice,
     /// Load history over virtual time (per node and interval).
     #[arg(long, value_name = "FILE.csv", default_value = "load-history.csv")]
     load_history: PathBuf,
+    /// Plot of per-node load and boundary positions over virtual time.
+    #[arg(long, value_name = "FILE.png", default_value = "loads.png")]
+    plot: PathBuf,
     /// Array of nodes.
     #[arg(long, value_name = "XxYxZ", value_parser = parse_triple, default_value = "4x4x4")]
     array: [u16; 3],
@@ -161,6 +189,14 @@ fn main() -> ExitCode {
         Command::Reference(args) => reference_cmd(args),
         Command::Compare(args) => compare_cmd(args),
         Command::Bench(BenchCommand::Board(args)) => bench_board(args),
+        Command::Bench(BenchCommand::Paper(args)) => {
+            let cfg = if args.quick {
+                host_tool::paper::PaperConfig::quick()
+            } else {
+                host_tool::paper::PaperConfig::full()
+            };
+            host_tool::paper::bench_paper(&cfg, &args.out).map(|report| print!("{report}"))
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -196,6 +232,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
     };
     opts.driving_axis = match args.driving_axis {
         AxisChoice::Auto => None,
+        AxisChoice::View => Some(host_tool::partition::view_axis(&scene)),
         AxisChoice::X => Some(0),
         AxisChoice::Y => Some(1),
         AxisChoice::Z => Some(2),
@@ -207,11 +244,12 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         if !args.threshold.is_finite() || args.threshold <= 0.0 || args.threshold > 65535.0 {
             return Err(input(format!("--threshold must be a load in (0, 65535], got {}", args.threshold)));
         }
-        opts.balance = Some(Balance {
-            interval: args.interval,
-            threshold: (args.threshold * 65536.0).round() as u32,
-            step: 1,
-        });
+        let policy = match args.policy {
+            PolicyChoice::Paper => SlidePolicy::Paper,
+            PolicyChoice::Proportional => host_tool::paper::PROPORTIONAL,
+        };
+        let threshold = (args.threshold * 65536.0).round() as u32;
+        opts.balance = Some(Balance { interval: args.interval, threshold, step: 1, policy });
     }
     let result = render_sim(&scene, &opts)?;
     let f = &result.frame;
@@ -219,7 +257,9 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
     let summary = summary_json(&scene, &opts, &result);
     let loads = loads_csv(&result);
     let history = history_csv(&result);
+    let plot = history_plot(&result)?;
     write_atomic(&args.out, &image)?;
+    write_atomic(&args.plot, &plot)?;
     write_atomic(&args.loads, loads.as_bytes())?;
     write_atomic(&args.summary, summary.as_bytes())?;
     write_atomic(&args.load_history, history.as_bytes())?;
@@ -338,6 +378,7 @@ fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String
                 sphere_tests: 0,
                 cube_steps: 0,
                 refused: 0,
+                extent: 0,
             });
             let b = r.partition.bounds(id);
             json!({
@@ -389,6 +430,72 @@ fn loads_csv(r: &RenderResult) -> String {
         );
     }
     s
+}
+
+/// Per-node load and boundary positions over virtual time.
+fn history_plot(r: &RenderResult) -> Result<Vec<u8>, HostError> {
+    use host_tool::plot::{Chart, Series, png};
+    let nodes = r.frame.loads.len();
+    let mut per_node: Vec<Vec<(f64, f64)>> = vec![Vec::new(); nodes];
+    for (at, l) in &r.frame.history {
+        let load =
+            if l.waiting == 0 { 100.0 } else { (l.running as f64 / l.waiting as f64).clamp(0.01, 100.0) };
+        if let Some(v) = per_node.get_mut(usize::from(l.node)) {
+            v.push((*at as f64, load));
+        }
+    }
+    let loads: Vec<Series> = per_node
+        .into_iter()
+        .enumerate()
+        .filter(|(_, p)| !p.is_empty())
+        .map(|(n, points)| Series { name: format!("node {n}"), points, markers: false })
+        .collect();
+    let history = host_tool::history::boundary_history(&r.partition, &r.frame.slides);
+    let mut lines: std::collections::BTreeMap<(usize, usize), Vec<(f64, f64)>> = Default::default();
+    for b in &history {
+        let line = lines.entry((b.row, b.index)).or_default();
+        if let Some(&(_, prev)) = line.last() {
+            line.push((b.time as f64, prev));
+        }
+        line.push((b.time as f64, f64::from(b.position)));
+    }
+    let end = r.frame.makespan as f64;
+    let boundaries: Vec<Series> = lines
+        .into_iter()
+        .map(|((row, index), mut points)| {
+            if let Some(&(_, last)) = points.last() {
+                points.push((end, last));
+            }
+            Series { name: format!("row {row} boundary {index}"), points, markers: false }
+        })
+        .collect();
+    let axis = ["x", "y", "z"][usize::from(r.partition.driving_axis)];
+    png(
+        &[
+            (
+                Chart {
+                    title: "Load (running / waiting) per node and interval".into(),
+                    x_label: "virtual time (cycles)".into(),
+                    y_label: "load".into(),
+                    log_x: false,
+                    log_y: true,
+                },
+                loads,
+            ),
+            (
+                Chart {
+                    title: format!("Boundary positions along the driving axis ({axis})"),
+                    x_label: "virtual time (cycles)".into(),
+                    y_label: "cube".into(),
+                    log_x: false,
+                    log_y: false,
+                },
+                boundaries,
+            ),
+        ],
+        1000,
+        420,
+    )
 }
 
 /// One row per node and interval: `time,node,interval,running,waiting,load`;

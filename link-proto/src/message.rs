@@ -76,6 +76,25 @@ pub struct Balance {
     pub threshold: u32,
     /// Cubes a boundary moves per slide (1 in the paper).
     pub step: u16,
+    /// How far a boundary moves.
+    pub policy: SlidePolicy,
+}
+
+/// How far a boundary moves when the loads call for a slide.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum SlidePolicy {
+    /// The paper's: `step` cubes when one load is lower and under the threshold.
+    Paper,
+    /// Proportional to the running-time difference, under-relaxed and capped
+    /// (after ALL's staggered method and GROMACS): shift `(W_b - W_l) / (W_b + W_l)
+    /// * (d_b + d_l) / (2 gamma)` cubes toward the busier node, at most 0.49 of
+    /// its extent, none below `deadband` (Q16.16 relative difference).
+    Proportional {
+        /// Under-relaxation, Q16.16 (4.0 is stable per ALL).
+        gamma: u32,
+        /// Relative running-time difference below which nothing moves, Q16.16.
+        deadband: u32,
+    },
 }
 
 /// Answer to a ray passed over a link.
@@ -319,6 +338,8 @@ pub struct LoadReport {
     pub cube_steps: u32,
     /// Rays this node refused for want of a pool slot (back-pressure events).
     pub refused: u32,
+    /// The node's extent along the driving axis, in cubes (for proportional slides).
+    pub extent: u16,
 }
 
 /// Proposal to move a shared driving-axis boundary.

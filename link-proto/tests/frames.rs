@@ -117,7 +117,16 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 tile,
                 credit,
                 level_depth: frame as u16,
-                balance: (credit % 2 == 0).then_some(Balance { interval: credit, threshold: frame, step: 1 }),
+                balance: (credit % 2 == 0).then_some(Balance {
+                    interval: credit,
+                    threshold: frame,
+                    step: 1,
+                    policy: if frame % 2 == 0 {
+                        SlidePolicy::Paper
+                    } else {
+                        SlidePolicy::Proportional { gamma: frame, deadband: frame / 3 }
+                    },
+                }),
             })
         ),
         arb_ray().prop_map(Message::Ray),
@@ -134,6 +143,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 sphere_tests: b.1,
                 cube_steps: b.2,
                 refused: b.0 ^ b.1,
+                extent: b.2 as u16,
             }
         )),
         (any::<u32>(), any::<u16>())

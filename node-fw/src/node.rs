@@ -21,7 +21,7 @@ use heapless::{Deque, Vec};
 use link_proto::{
     Assign, Balance, Capacity, ErrorCode, ErrorReport, Hello, HitMsg, LightMsg, LoadReport, MaterialMsg,
     Message, PROTOCOL_VERSION, RayKind, RayMsg, RayReply, RenderStart, Retire, SceneHeader, SlideDone,
-    SlideOffer, SlideRefusal, SlideReply, SphereMsg,
+    SlideOffer, SlidePolicy, SlideRefusal, SlideReply, SphereMsg,
 };
 
 use crate::camera::primary_line;
@@ -671,6 +671,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             sphere_tests: self.totals.sphere_tests,
             cube_steps: self.totals.cube_steps,
             refused: self.totals.refused,
+            extent: {
+                let (lo, hi) = self.extent_after_giving();
+                hi.saturating_sub(lo)
+            },
         };
         self.queue_control(Port::Host, Message::Load(report));
         if self.has_neighbour(Side::Lo) {
@@ -683,19 +687,45 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// lower and under the threshold, the boundary slides one step toward the busier node.
     fn decide(&mut self) {
         let (Some(balance), Some((k, own))) = (self.balance, self.slide.own_load) else { return };
-        let Some((kn, theirs)) = self.slide.neighbour_load[Side::Hi] else { return };
+        let Some((kn, theirs, their_extent)) = self.slide.neighbour_load[Side::Hi] else { return };
         if k != kn || self.slide.busy(Side::Hi) || !self.has_neighbour(Side::Hi) {
             return;
         }
         self.slide.neighbour_load[Side::Hi] = None;
         let d = self.driving_axis();
         let (lo, hi) = self.extent_after_giving();
-        let step = balance.step.max(1);
-        if own.lighter_than(&theirs) && own.under(balance.threshold) {
+        let own_extent = hi.saturating_sub(lo);
+        let (take, give) = match balance.policy {
+            SlidePolicy::Paper => {
+                let step = balance.step.max(1);
+                let take = own.lighter_than(&theirs) && own.under(balance.threshold);
+                let give = theirs.lighter_than(&own) && theirs.under(balance.threshold);
+                (take.then_some(step), give.then_some(step))
+            }
+            SlidePolicy::Proportional { gamma, deadband } => (
+                slide::proportional_shift(
+                    own.running,
+                    theirs.running,
+                    own_extent,
+                    their_extent,
+                    gamma,
+                    deadband,
+                ),
+                slide::proportional_shift(
+                    theirs.running,
+                    own.running,
+                    their_extent,
+                    own_extent,
+                    gamma,
+                    deadband,
+                ),
+            ),
+        };
+        if let Some(step) = take {
             let offer = SlideOffer { interval: k, boundary: hi.saturating_add(step) };
             self.slide.requested[Side::Hi] = true;
             self.queue_control(Port::toward(d, true), Message::SlideRequest(offer));
-        } else if theirs.lighter_than(&own) && theirs.under(balance.threshold) && hi > lo + step {
+        } else if let Some(step) = give.filter(|&s| hi > lo + s) {
             self.start_giving(Side::Hi, hi - step);
         }
     }
@@ -719,7 +749,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         match msg {
             Message::Load(l) => {
                 self.slide.neighbour_load[side] =
-                    Some((l.interval, Load { running: l.running, waiting: l.waiting }));
+                    Some((l.interval, Load { running: l.running, waiting: l.waiting }, l.extent));
                 self.decide();
             }
             Message::SlideRequest(o) => {
@@ -928,6 +958,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 sphere_tests: self.totals.sphere_tests,
                 cube_steps: self.totals.cube_steps,
                 refused: self.totals.refused,
+                extent: 0,
             };
             if send(links, Port::Host, Message::Load(report)) {
                 self.load_due = None;

@@ -95,8 +95,8 @@ pub struct SlideState {
     pub incoming: PerSide<Option<Incoming>>,
     /// A request sent to the neighbour on this side, not yet answered.
     pub requested: PerSide<bool>,
-    /// The neighbour's latest load report per side: (interval, load).
-    pub neighbour_load: PerSide<Option<(u32, Load)>>,
+    /// The neighbour's latest load report per side: (interval, load, extent).
+    pub neighbour_load: PerSide<Option<(u32, Load, u16)>>,
     /// This node's latest interval load.
     pub own_load: Option<(u32, Load)>,
     /// Slides committed as receiver this frame.
@@ -153,4 +153,55 @@ pub fn slab(owned: CubeBox, axis: usize, side: Side, boundary: u16) -> CubeBox {
         *hi = b;
     }
     out
+}
+
+/// Cubes the boundary should move toward the busier node under the
+/// proportional policy: `(W_b - W_l) / (W_b + W_l) * (d_b + d_l) / (2 gamma)`,
+/// rounded to nearest, at least 1 when above the dead band, at most 0.49 of the
+/// busier node's extent. `None` below the dead band.
+pub fn proportional_shift(
+    light: u64,
+    busy: u64,
+    d_light: u16,
+    d_busy: u16,
+    gamma: u32,
+    deadband: u32,
+) -> Option<u16> {
+    let (wl, wb) = (u128::from(light), u128::from(busy));
+    let total = wl + wb;
+    if total == 0 || wb <= wl {
+        return None;
+    }
+    // (wb - wl) / total < deadband / 2^16 -> no move.
+    if ((wb - wl) << 16) < u128::from(deadband) * total {
+        return None;
+    }
+    let span = u128::from(d_light) + u128::from(d_busy);
+    let num = ((wb - wl) * span) << 16;
+    let den = total * 2 * u128::from(gamma.max(1));
+    let shift = ((num + den / 2) / den).max(1);
+    let cap = (u128::from(d_busy) * 49) / 100;
+    let shift = shift.min(cap);
+    (shift > 0).then(|| u16::try_from(shift).unwrap_or(u16::MAX))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const ONE: u32 = 1 << 16;
+
+    #[test]
+    fn proportional_shift_follows_the_formula() {
+        // (300 - 100) / 400 * (8 + 8) / (2 * 4) = 1.0 cube.
+        assert_eq!(proportional_shift(100, 300, 8, 8, 4 * ONE, ONE / 10), Some(1));
+        // Twice the spread: 2 cubes; gamma 1: 8 * 0.5 = 4 cubes... capped at 0.49 * 8 = 3.
+        assert_eq!(proportional_shift(100, 300, 16, 16, 4 * ONE, ONE / 10), Some(2));
+        assert_eq!(proportional_shift(100, 300, 8, 8, ONE, ONE / 10), Some(3));
+        // Inside the dead band, or the light node is not lighter: no move.
+        assert_eq!(proportional_shift(100, 105, 8, 8, 4 * ONE, ONE / 10), None);
+        assert_eq!(proportional_shift(300, 100, 8, 8, 4 * ONE, ONE / 10), None);
+        // A busy node of one layer cannot give anything.
+        assert_eq!(proportional_shift(0, 300, 8, 1, 4 * ONE, ONE / 10), None);
+    }
 }

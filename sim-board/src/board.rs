@@ -10,8 +10,9 @@ use crate::cost::{CostModel, LinkModel};
 use crate::sim_links::{PortState, SimLinks};
 
 /// The node firmware as the board runs it: 2048 spheres, 32768 sphere
-/// references, 32768 cubes (a 32^3 grid on one node) and 2048 ray slots.
-pub type SimNode = Node<2048, 32768, 32768, 2048>;
+/// references, 32768 cubes (a 32^3 grid on one node) and 4096 ray slots
+/// (an 8x8x8 array with sliding needs 661 class levels at depth 3 and more).
+pub type SimNode = Node<2048, 32768, 32768, 4096>;
 
 /// Active nodes in a round from which the round runs on all cores.
 const PARALLEL_MIN_ACTIVE: usize = 32;
@@ -147,6 +148,20 @@ impl Slot {
     }
 }
 
+/// Builds `count` boxed nodes on a thread with a large stack: a node is about a
+/// megabyte and `Box::new` may build it on the stack first, which overflows the
+/// 2 MiB stack of a test thread.
+fn build_nodes(count: usize) -> Vec<Box<SimNode>> {
+    let build = move || (0..count).map(|id| Box::new(SimNode::new(id as u16))).collect::<Vec<_>>();
+    std::thread::Builder::new()
+        .name("sim-board-build".into())
+        .stack_size(64 << 20)
+        .spawn(build)
+        .ok()
+        .and_then(|h| h.join().ok())
+        .unwrap_or_default()
+}
+
 /// X x Y x Z nodes running the node firmware, wired to their face neighbours.
 pub struct Board {
     config: SimConfig,
@@ -162,6 +177,7 @@ impl Board {
         let count = nx * ny * nz;
         let mut neighbours = Vec::with_capacity(count);
         let mut slots = Vec::with_capacity(count);
+        let mut nodes = build_nodes(count).into_iter();
         for id in 0..count {
             let c = [id % nx, (id / nx) % ny, id / (nx * ny)];
             let n: [Option<usize>; 6] = std::array::from_fn(|p| {
@@ -183,7 +199,7 @@ impl Board {
             }
             neighbours.push(n);
             slots.push(Slot {
-                node: Box::new(SimNode::new(id as u16)),
+                node: nodes.next().unwrap_or_else(|| Box::new(SimNode::new(id as u16))),
                 clock: 0,
                 ports: Default::default(),
                 wired,

@@ -136,7 +136,12 @@ fn sliding_boundaries_keep_the_image_bit_identical() {
         opts.initial = initial;
         opts.driving_axis = axis;
         // Short intervals and a high threshold: boundaries move often.
-        opts.balance = Some(link_proto::Balance { interval: 20_000, threshold: 50 << 16, step: 1 });
+        opts.balance = Some(link_proto::Balance {
+            interval: 20_000,
+            threshold: 50 << 16,
+            step: 1,
+            policy: link_proto::SlidePolicy::Paper,
+        });
         let r = render_sim(&s, &opts).unwrap_or_else(|e| panic!("{array:?}: {e}"));
         assert_eq!(r.frame.rays_created, r.frame.rays_terminated, "{array:?}");
         assert!(r.frame.slides.len() > 5, "{array:?}: only {} slides", r.frame.slides.len());
@@ -160,7 +165,12 @@ fn a_slide_the_receiver_cannot_hold_is_refused_and_reported() {
     let mut opts = RenderOptions::new([2, 1, 1]);
     opts.size = size;
     opts.driving_axis = Some(0);
-    opts.balance = Some(link_proto::Balance { interval: 5_000, threshold: 1000 << 16, step: 1 });
+    opts.balance = Some(link_proto::Balance {
+        interval: 5_000,
+        threshold: 1000 << 16,
+        step: 1,
+        policy: link_proto::SlidePolicy::Paper,
+    });
     let r = render_sim(&s, &opts).expect("a refused slide is not a failure");
     assert!(!r.frame.refused_slides.is_empty(), "capacity refusals were reported");
     assert_eq!(r.frame.rays_created, r.frame.rays_terminated);

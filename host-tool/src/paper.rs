@@ -1,0 +1,275 @@
+//! `host-tool bench paper`: the paper's experiments on the in-memory board.
+//!
+//! - Fig. 7: time against the number of subregions S, for A (one node holding
+//!   the whole grid), B (the array, initial rays from the eye's node) and C
+//!   (the array, initial rays in parallel).
+//! - Fig. 8: C for several sphere counts.
+//! - Figs. 9 and 10: sliding against the static partition over the volume
+//!   ratio of the region the spheres are confined to, 1000 and 2000 spheres.
+//!
+//! Times are makespans in virtual cycles of the board's cost model.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use link_proto::{Balance, InitialRays, SlidePolicy};
+
+use crate::error::HostError;
+use crate::output::write_atomic;
+use crate::plot::{Chart, Series, png};
+use crate::render::{RenderOptions, render_sim};
+use crate::scene::Scene;
+
+/// Experiment sizes.
+#[derive(Debug, Clone)]
+pub struct PaperConfig {
+    /// Image size.
+    pub size: [u16; 2],
+    /// Arrays (n x n x n) for Figs. 7 and 8.
+    pub sides: Vec<u16>,
+    /// Sphere counts for Fig. 8.
+    pub counts: Vec<usize>,
+    /// Arrays for Figs. 9 and 10.
+    pub balance_arrays: Vec<u16>,
+    /// Sphere counts for Figs. 9 and 10.
+    pub balance_counts: Vec<usize>,
+    /// Volume ratios for Figs. 9 and 10.
+    pub ratios: Vec<f64>,
+    /// Grid.
+    pub grid: [u16; 3],
+    /// Seed of the random scenes.
+    pub seed: u64,
+}
+
+impl PaperConfig {
+    /// The full experiment.
+    pub fn full() -> Self {
+        Self {
+            size: [128, 128],
+            sides: vec![1, 2, 3, 4, 6, 8],
+            counts: vec![250, 500, 1000, 2000],
+            balance_arrays: vec![4, 8],
+            balance_counts: vec![1000, 2000],
+            ratios: vec![1.0, 0.5, 0.25, 0.125],
+            grid: [32; 3],
+            seed: 1986,
+        }
+    }
+
+    /// A reduced run for CI (a minute or two).
+    pub fn quick() -> Self {
+        Self {
+            size: [48, 48],
+            sides: vec![1, 2, 4],
+            counts: vec![250, 1000],
+            balance_arrays: vec![4],
+            balance_counts: vec![1000],
+            ratios: vec![1.0, 0.25],
+            grid: [32; 3],
+            seed: 1986,
+        }
+    }
+}
+
+/// The proportional policy's settings: gamma 4 (ALL's stable choice), a 10% dead band.
+pub const PROPORTIONAL: SlidePolicy = SlidePolicy::Proportional { gamma: 4 << 16, deadband: 6554 };
+
+/// How a balanced run slides.
+#[derive(Debug, Clone, Copy)]
+enum Policy {
+    Static,
+    /// The paper's rule with its driving axis.
+    Paper,
+    /// The paper's rule along the view axis.
+    PaperView,
+    /// Proportional, damped steps along the view axis.
+    ProportionalView,
+}
+
+fn run(
+    scene: &Scene,
+    side: [u16; 3],
+    cfg: &PaperConfig,
+    initial: InitialRays,
+    policy: Policy,
+    static_makespan: u64,
+) -> Result<(u64, f64, usize, u8), HostError> {
+    let mut opts = RenderOptions::new(side);
+    opts.size = cfg.size;
+    opts.initial = initial;
+    // The deepest pool that fits this array's class levels (at most 4).
+    let sliding = (!matches!(policy, Policy::Static)).then_some(2);
+    let levels = node_fw::pool::class_bound(side, scene.max_depth, sliding) + 1;
+    opts.level_depth = (u32::from(sim_board::SimNode::capacity().rays) / levels).clamp(1, 4) as u16;
+    if !matches!(policy, Policy::Static) {
+        // About 64 load comparisons over a frame, threshold 3 (loads are running / waiting).
+        let interval = (static_makespan / 64).max(10_000);
+        let slide =
+            if matches!(policy, Policy::ProportionalView) { PROPORTIONAL } else { SlidePolicy::Paper };
+        opts.balance = Some(Balance { interval, threshold: 3 << 16, step: 1, policy: slide });
+    }
+    if matches!(policy, Policy::PaperView | Policy::ProportionalView) {
+        opts.driving_axis = Some(crate::partition::view_axis(scene));
+    }
+    let r = render_sim(scene, &opts)?;
+    if r.frame.rays_created != r.frame.rays_terminated {
+        return Err(HostError::Node("rays lost in a benchmark run".into()));
+    }
+    let busy: Vec<f64> = r.frame.loads.iter().map(|l| l.map_or(0.0, |l| l.running as f64)).collect();
+    let mean = busy.iter().sum::<f64>() / busy.len().max(1) as f64;
+    let imbalance = busy.iter().cloned().fold(0.0, f64::max) / mean.max(1.0);
+    Ok((r.frame.makespan, imbalance, r.frame.slides.len(), r.partition.driving_axis))
+}
+
+/// Least-squares slope of log(y) against log(x).
+pub fn loglog_slope(points: &[(f64, f64)]) -> f64 {
+    let pts: Vec<(f64, f64)> =
+        points.iter().filter(|p| p.0 > 0.0 && p.1 > 0.0).map(|p| (p.0.ln(), p.1.ln())).collect();
+    let n = pts.len() as f64;
+    let (sx, sy) = pts.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
+    let (mx, my) = (sx / n, sy / n);
+    let cov: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let var: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    if var == 0.0 { 0.0 } else { cov / var }
+}
+
+/// Runs every experiment and writes CSV tables and PNG plots into `out`.
+pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
+    std::fs::create_dir_all(out)
+        .map_err(|e| HostError::Io(format!("cannot create {}: {e}", out.display())))?;
+    let mut report = String::new();
+
+    // Figs. 7 and 8.
+    let mut fig7 = String::from("S,mode,spheres,makespan,imbalance\n");
+    let mut fig8 = String::from("S,spheres,makespan\n");
+    let mut series7: Vec<Series> = ["A one node", "B eye node", "C parallel"]
+        .iter()
+        .map(|n| Series { name: n.to_string(), points: Vec::new(), markers: true })
+        .collect();
+    let mut series8: Vec<Series> = Vec::new();
+    for &count in &cfg.counts {
+        let scene = Scene::random(count, cfg.seed, 1.0, cfg.grid)?;
+        let mut s8 = Series { name: format!("C, {count} spheres"), points: Vec::new(), markers: true };
+        let (single, _, _, _) = run(&scene, [1; 3], cfg, InitialRays::Parallel, Policy::Static, 0)?;
+        for &n in &cfg.sides {
+            let s = u32::from(n).pow(3) as f64;
+            let (c, imb_c, _, _) = run(&scene, [n; 3], cfg, InitialRays::Parallel, Policy::Static, 0)?;
+            s8.points.push((s, c as f64));
+            let _ = writeln!(fig8, "{s},{count},{c}");
+            if count == 1000 {
+                let (b, imb_b, _, _) = run(&scene, [n; 3], cfg, InitialRays::EyeNode, Policy::Static, 0)?;
+                for (i, (t, imb, mode)) in
+                    [(single, 1.0, "A"), (b, imb_b, "B"), (c, imb_c, "C")].into_iter().enumerate()
+                {
+                    series7[i].points.push((s, t as f64));
+                    let _ = writeln!(fig7, "{s},{mode},{count},{t},{imb:.3}");
+                }
+            }
+        }
+        series8.push(s8);
+    }
+    let _ = writeln!(
+        report,
+        "Fig. 7 (1000 spheres, {}x{} pixels, grid {:?}): log-log slope of time against S",
+        cfg.size[0], cfg.size[1], cfg.grid
+    );
+    for s in &series7 {
+        let _ = writeln!(report, "  {}: S^{:.2}", s.name, loglog_slope(&s.points));
+    }
+    let _ = writeln!(
+        report,
+        "  paper: A ~ S^-0.67 (subdivision on one computer), C ~ S^-1.5 (against the unsubdivided computer)"
+    );
+    let _ = writeln!(
+        report,
+        "  here the unit-cube grid already subdivides the space on one node, so A does not change with S."
+    );
+    let _ = writeln!(report, "Fig. 8: slope of C against S per sphere count");
+    for s in &series8 {
+        let _ = writeln!(report, "  {}: S^{:.2}", s.name, loglog_slope(&s.points));
+    }
+    let chart = |title: &str, x: &str| Chart {
+        title: title.into(),
+        x_label: x.into(),
+        y_label: "makespan (cycles)".into(),
+        log_x: true,
+        log_y: true,
+    };
+    write_atomic(&out.join("fig7.csv"), fig7.as_bytes())?;
+    write_atomic(&out.join("fig8.csv"), fig8.as_bytes())?;
+    write_atomic(
+        &out.join("fig7.png"),
+        &png(&[(chart("Fig. 7: space subdivision effect", "S (nodes)"), series7)], 900, 500)?,
+    )?;
+    write_atomic(
+        &out.join("fig8.png"),
+        &png(&[(chart("Fig. 8: C for several sphere counts", "S (nodes)"), series8)], 900, 500)?,
+    )?;
+
+    // Figs. 9 and 10.
+    let mut fig9 = String::from(
+        "array,spheres,volume_ratio,policy,driving_axis,makespan,ratio_to_static,imbalance,slides,moves_per_boundary_interval\n",
+    );
+    let mut panels = Vec::new();
+    for &count in &cfg.balance_counts {
+        let mut series: Vec<Series> = Vec::new();
+        for &n in &cfg.balance_arrays {
+            let mut paper =
+                Series { name: format!("{n}x{n}x{n}, paper's axis"), points: Vec::new(), markers: true };
+            let mut view =
+                Series { name: format!("{n}x{n}x{n}, view axis"), points: Vec::new(), markers: true };
+            let mut prop =
+                Series { name: format!("{n}x{n}x{n}, proportional"), points: Vec::new(), markers: true };
+            for &v in &cfg.ratios {
+                let scene = Scene::random(count, cfg.seed, v, cfg.grid)?;
+                let (st, imb, _, axis) = run(&scene, [n; 3], cfg, InitialRays::Parallel, Policy::Static, 0)?;
+                let _ = writeln!(fig9, "{n}x{n}x{n},{count},{v},static,{axis},{st},1.000,{imb:.3},0,0");
+                for (policy, name, line) in [
+                    (Policy::Paper, "slide", &mut paper),
+                    (Policy::PaperView, "slide-view", &mut view),
+                    (Policy::ProportionalView, "proportional-view", &mut prop),
+                ] {
+                    let (t, imb, slides, axis) = run(&scene, [n; 3], cfg, InitialRays::Parallel, policy, st)?;
+                    let ratio = t as f64 / st as f64;
+                    // Share of boundaries that move per interval (thrashing when high).
+                    let boundaries = f64::from(n) * f64::from(n) * f64::from(n - 1);
+                    let intervals = (t as f64 / (st / 64).max(10_000) as f64).max(1.0);
+                    let churn = slides as f64 / (boundaries * intervals);
+                    line.points.push((v, ratio));
+                    let _ = writeln!(
+                        fig9,
+                        "{n}x{n}x{n},{count},{v},{name},{axis},{t},{ratio:.3},{imb:.3},{slides},{churn:.4}"
+                    );
+                    let _ = writeln!(
+                        report,
+                        "Fig. 9/10: {n}^3 nodes, {count} spheres, volume ratio {v}: {name} (axis {axis})/static = {ratio:.3}, \
+                         imbalance {imb:.2}, {slides} slides, {:.1}% of boundaries move per interval",
+                        churn * 100.0
+                    );
+                }
+            }
+            series.push(paper);
+            series.push(view);
+            series.push(prop);
+        }
+        series.push(Series {
+            name: "paper: 3/4 at 1, 1/5 at 1/4".into(),
+            points: vec![(1.0, 0.75), (0.25, 0.2)],
+            markers: true,
+        });
+        panels.push((
+            Chart {
+                title: format!("Figs. 9/10: sliding against static, {count} spheres"),
+                x_label: "volume ratio of the object region".into(),
+                y_label: "makespan, slide / static".into(),
+                log_x: true,
+                log_y: false,
+            },
+            series,
+        ));
+    }
+    write_atomic(&out.join("fig9_10.csv"), fig9.as_bytes())?;
+    write_atomic(&out.join("fig9_10.png"), &png(&panels, 900, 450)?)?;
+    write_atomic(&out.join("report.txt"), report.as_bytes())?;
+    Ok(report)
+}
