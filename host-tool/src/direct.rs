@@ -37,10 +37,32 @@ pub struct DirectImage {
     pub hits: Vec<Option<PrimaryHit>>,
     /// Rays traced.
     pub rays: u64,
+    /// Per unit cube (x fastest), the compute cycles spent in it under the
+    /// board's cost model; empty unless asked for.
+    pub cost_map: Vec<u64>,
+}
+
+/// Renders `scene` and measures the compute cost of every unit cube.
+pub fn render_with_costs(
+    scene: &Scene,
+    width: u16,
+    height: u16,
+    cost: &sim_board::CostModel,
+) -> Result<DirectImage, HostError> {
+    render_impl(scene, width, height, Some(cost))
 }
 
 /// Renders `scene` at `width` x `height` with the node kernels in one loop.
 pub fn render(scene: &Scene, width: u16, height: u16) -> Result<DirectImage, HostError> {
+    render_impl(scene, width, height, None)
+}
+
+fn render_impl(
+    scene: &Scene,
+    width: u16,
+    height: u16,
+    cost: Option<&sim_board::CostModel>,
+) -> Result<DirectImage, HostError> {
     let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
     let mut region: Box<Whole> = Box::new(Whole::new());
     region
@@ -67,7 +89,15 @@ pub fn render(scene: &Scene, width: u16, height: u16) -> Result<DirectImage, Hos
     let shading = Shading { header: &header, grid: &grid, lights: &lights };
     let camera = PixelBasis::new(&scene.camera(), width, height).msg();
     let pixels = usize::from(width) * usize::from(height);
-    let mut out = DirectImage { sums: vec![[0; 3]; pixels], hits: vec![None; pixels], rays: 0 };
+    let cubes = scene.grid.iter().map(|&n| usize::from(n)).product::<usize>();
+    let mut out = DirectImage {
+        sums: vec![[0; 3]; pixels],
+        hits: vec![None; pixels],
+        rays: 0,
+        cost_map: if cost.is_some() { vec![0; cubes] } else { Vec::new() },
+    };
+    let mut costs =
+        cost.map(|c| Costs { model: *c, grid: scene.grid, map: std::mem::take(&mut out.cost_map) });
     let mut stack: Vec<RayMsg> = Vec::new();
     for y in 0..height {
         for x in 0..width {
@@ -91,7 +121,7 @@ pub fn render(scene: &Scene, width: u16, height: u16) -> Result<DirectImage, Hos
             stack.push(ray);
             while let Some(ray) = stack.pop() {
                 out.rays += 1;
-                let (rgb, hit) = trace(&mut region, &shading, &grid, &ray, &mut stack);
+                let (rgb, hit) = trace(&mut region, &shading, &grid, &ray, &mut stack, costs.as_mut());
                 let sum = &mut out.sums[pixel];
                 for c in 0..3 {
                     sum[c] += u64::from(rgb[c]);
@@ -102,7 +132,27 @@ pub fn render(scene: &Scene, width: u16, height: u16) -> Result<DirectImage, Hos
             }
         }
     }
+    if let Some(c) = costs {
+        out.cost_map = c.map;
+    }
     Ok(out)
+}
+
+/// A cost map being filled.
+struct Costs {
+    model: sim_board::CostModel,
+    grid: [u16; 3],
+    map: Vec<u64>,
+}
+
+impl Costs {
+    fn add(&mut self, cell: [i32; 3], cycles: u64) {
+        let [nx, ny, _] = self.grid.map(usize::from);
+        let i = cell[0] as usize + nx * (cell[1] as usize + ny * cell[2] as usize);
+        if let Some(c) = self.map.get_mut(i) {
+            *c += cycles;
+        }
+    }
 }
 
 /// Traces one ray to its end; pushes its children; returns its own contribution.
@@ -112,6 +162,7 @@ fn trace(
     grid: &Grid,
     ray: &RayMsg,
     stack: &mut Vec<RayMsg>,
+    mut costs: Option<&mut Costs>,
 ) -> ([u32; 3], Option<Hit>) {
     let line = Line::new(
         Point::from_bits(ray.origin).expect("quantised origin"),
@@ -127,7 +178,23 @@ fn trace(
         any_hit: ray.kind == RayKind::Shadow,
     };
     let (mut best, mut stats) = (None, node_fw::TraceStats::default());
-    match region.trace(&line, &mut walk, &mut best, &query, &mut stats) {
+    if let Some(c) = costs.as_deref_mut() {
+        let trace_cost = c.model.trace;
+        c.add(walk.cell(), trace_cost);
+    }
+    let mut last = walk.cell();
+    let outcome = region.trace_observed(&line, &mut walk, &mut best, &query, &mut stats, |cell, tests| {
+        last = cell;
+        if let Some(c) = costs.as_deref_mut() {
+            let cycles = c.model.cube_step + u64::from(tests) * c.model.sphere_test;
+            c.add(cell, cycles);
+        }
+    });
+    if let (Outcome::Hit(_), Some(c)) = (outcome, costs) {
+        let shade_cost = c.model.shade;
+        c.add(last, shade_cost);
+    }
+    match outcome {
         Outcome::Hit(hit) => {
             let sphere = *region.sphere(hit.sphere).expect("hit sphere is stored");
             let Some(surface) = Surface::at(&line, hit.t, &sphere) else { return ([0; 3], Some(hit)) };

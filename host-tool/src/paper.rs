@@ -86,6 +86,17 @@ enum Policy {
     ProportionalView,
 }
 
+/// What one benchmark run measured.
+#[derive(Debug, Clone, Copy)]
+struct Run {
+    makespan: u64,
+    imbalance: f64,
+    slides: usize,
+    axis: u8,
+    /// Sum of the nodes' running time (W).
+    busy: u64,
+}
+
 fn run(
     scene: &Scene,
     side: [u16; 3],
@@ -93,14 +104,37 @@ fn run(
     initial: InitialRays,
     policy: Policy,
     static_makespan: u64,
-) -> Result<(u64, f64, usize, u8), HostError> {
+) -> Result<Run, HostError> {
+    run_on(scene, side, cfg, initial, policy, static_makespan, None)
+}
+
+fn options(
+    scene: &Scene,
+    side: [u16; 3],
+    cfg: &PaperConfig,
+    initial: InitialRays,
+    sliding: bool,
+) -> RenderOptions {
     let mut opts = RenderOptions::new(side);
     opts.size = cfg.size;
     opts.initial = initial;
     // The deepest pool that fits this array's class levels (at most 4).
-    let sliding = (!matches!(policy, Policy::Static)).then_some(2);
-    let levels = node_fw::pool::class_bound(side, scene.max_depth, sliding) + 1;
+    let levels = node_fw::pool::class_bound(side, scene.max_depth, sliding.then_some(2)) + 1;
     opts.level_depth = (u32::from(sim_board::SimNode::capacity().rays) / levels).clamp(1, 4) as u16;
+    opts
+}
+
+fn run_on(
+    scene: &Scene,
+    side: [u16; 3],
+    cfg: &PaperConfig,
+    initial: InitialRays,
+    policy: Policy,
+    static_makespan: u64,
+    partition: Option<crate::partition::Partition>,
+) -> Result<Run, HostError> {
+    let mut opts =
+        options(scene, side, cfg, initial, !matches!(policy, Policy::Static) || partition.is_some());
     if !matches!(policy, Policy::Static) {
         // About 64 load comparisons over a frame, threshold 3 (loads are running / waiting).
         let interval = (static_makespan / 64).max(10_000);
@@ -111,14 +145,23 @@ fn run(
     if matches!(policy, Policy::PaperView | Policy::ProportionalView) {
         opts.driving_axis = Some(crate::partition::view_axis(scene));
     }
-    let r = render_sim(scene, &opts)?;
+    let r = match partition {
+        Some(p) => crate::render::render_partitioned(scene, &opts, p)?,
+        None => render_sim(scene, &opts)?,
+    };
     if r.frame.rays_created != r.frame.rays_terminated {
         return Err(HostError::Node("rays lost in a benchmark run".into()));
     }
     let busy: Vec<f64> = r.frame.loads.iter().map(|l| l.map_or(0.0, |l| l.running as f64)).collect();
     let mean = busy.iter().sum::<f64>() / busy.len().max(1) as f64;
     let imbalance = busy.iter().cloned().fold(0.0, f64::max) / mean.max(1.0);
-    Ok((r.frame.makespan, imbalance, r.frame.slides.len(), r.partition.driving_axis))
+    Ok(Run {
+        makespan: r.frame.makespan,
+        imbalance,
+        slides: r.frame.slides.len(),
+        axis: r.partition.driving_axis,
+        busy: busy.iter().sum::<f64>() as u64,
+    })
 }
 
 /// Least-squares slope of log(y) against log(x).
@@ -150,14 +193,16 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
     for &count in &cfg.counts {
         let scene = Scene::random(count, cfg.seed, 1.0, cfg.grid)?;
         let mut s8 = Series { name: format!("C, {count} spheres"), points: Vec::new(), markers: true };
-        let (single, _, _, _) = run(&scene, [1; 3], cfg, InitialRays::Parallel, Policy::Static, 0)?;
+        let single = run(&scene, [1; 3], cfg, InitialRays::Parallel, Policy::Static, 0)?.makespan;
         for &n in &cfg.sides {
             let s = u32::from(n).pow(3) as f64;
-            let (c, imb_c, _, _) = run(&scene, [n; 3], cfg, InitialRays::Parallel, Policy::Static, 0)?;
+            let rc = run(&scene, [n; 3], cfg, InitialRays::Parallel, Policy::Static, 0)?;
+            let (c, imb_c) = (rc.makespan, rc.imbalance);
             s8.points.push((s, c as f64));
             let _ = writeln!(fig8, "{s},{count},{c}");
             if count == 1000 {
-                let (b, imb_b, _, _) = run(&scene, [n; 3], cfg, InitialRays::EyeNode, Policy::Static, 0)?;
+                let rb = run(&scene, [n; 3], cfg, InitialRays::EyeNode, Policy::Static, 0)?;
+                let (b, imb_b) = (rb.makespan, rb.imbalance);
                 for (i, (t, imb, mode)) in
                     [(single, 1.0, "A"), (b, imb_b, "B"), (c, imb_c, "C")].into_iter().enumerate()
                 {
@@ -184,6 +229,12 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
         report,
         "  here the unit-cube grid already subdivides the space on one node, so A does not change with S."
     );
+    let _ = writeln!(report, "Honest efficiency E = T(one node, same grid) / (S T(S)) for C, 1000 spheres:");
+    if let (Some(one), Some(c)) = (series7[0].points.first(), series7.get(2)) {
+        for &(s, t) in &c.points {
+            let _ = writeln!(report, "  S = {s}: E = {:.3}", one.1 / (s * t));
+        }
+    }
     let _ = writeln!(report, "Fig. 8: slope of C against S per sphere count");
     for s in &series8 {
         let _ = writeln!(report, "  {}: S^{:.2}", s.name, loglog_slope(&s.points));
@@ -222,14 +273,48 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                 Series { name: format!("{n}x{n}x{n}, proportional"), points: Vec::new(), markers: true };
             for &v in &cfg.ratios {
                 let scene = Scene::random(count, cfg.seed, v, cfg.grid)?;
-                let (st, imb, _, axis) = run(&scene, [n; 3], cfg, InitialRays::Parallel, Policy::Static, 0)?;
+                let base = run(&scene, [n; 3], cfg, InitialRays::Parallel, Policy::Static, 0)?;
+                let (st, imb, axis) = (base.makespan, base.imbalance, base.axis);
                 let _ = writeln!(fig9, "{n}x{n}x{n},{count},{v},static,{axis},{st},1.000,{imb:.3},0,0");
+                // Oracle: the view axis cut per row where the measured compute cost splits evenly.
+                let costs = crate::direct::render_with_costs(
+                    &scene,
+                    cfg.size[0],
+                    cfg.size[1],
+                    &sim_board::CostModel::default(),
+                )?;
+                let view_ax = crate::partition::view_axis(&scene);
+                let oracle_p =
+                    crate::partition::Partition::oracle(scene.grid, [n; 3], view_ax, &costs.cost_map)?;
+                let oracle =
+                    run_on(&scene, [n; 3], cfg, InitialRays::Parallel, Policy::Static, st, Some(oracle_p))?;
+                let heaviest = costs.cost_map.iter().copied().max().unwrap_or(0);
+                let s_nodes = u64::from(n).pow(3);
+                let bound = (base.busy / s_nodes).max(heaviest);
+                let _ = writeln!(
+                    fig9,
+                    "{n}x{n}x{n},{count},{v},oracle,{view_ax},{},{:.3},{:.3},0,0",
+                    oracle.makespan,
+                    oracle.makespan as f64 / st as f64,
+                    oracle.imbalance
+                );
+                let _ = writeln!(
+                    report,
+                    "Fig. 9/10: {n}^3 nodes, {count} spheres, volume ratio {v}: static makespan {st}, imbalance {imb:.2}; \
+                     lower bound max(W/S, heaviest cube) = {bound}; static/bound = {:.2}; \
+                     oracle/static = {:.3} (imbalance {:.2}, oracle/bound = {:.2})",
+                    st as f64 / bound as f64,
+                    oracle.makespan as f64 / st as f64,
+                    oracle.imbalance,
+                    oracle.makespan as f64 / bound as f64
+                );
                 for (policy, name, line) in [
                     (Policy::Paper, "slide", &mut paper),
                     (Policy::PaperView, "slide-view", &mut view),
                     (Policy::ProportionalView, "proportional-view", &mut prop),
                 ] {
-                    let (t, imb, slides, axis) = run(&scene, [n; 3], cfg, InitialRays::Parallel, policy, st)?;
+                    let r = run(&scene, [n; 3], cfg, InitialRays::Parallel, policy, st)?;
+                    let (t, imb, slides, axis) = (r.makespan, r.imbalance, r.slides, r.axis);
                     let ratio = t as f64 / st as f64;
                     // Share of boundaries that move per interval (thrashing when high).
                     let boundaries = f64::from(n) * f64::from(n) * f64::from(n - 1);
@@ -243,8 +328,9 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                     let _ = writeln!(
                         report,
                         "Fig. 9/10: {n}^3 nodes, {count} spheres, volume ratio {v}: {name} (axis {axis})/static = {ratio:.3}, \
-                         imbalance {imb:.2}, {slides} slides, {:.1}% of boundaries move per interval",
-                        churn * 100.0
+                         imbalance {imb:.2}, {slides} slides, {:.1}% of boundaries move per interval, makespan/bound {:.2}",
+                        churn * 100.0,
+                        t as f64 / bound as f64
                     );
                 }
             }

@@ -16,6 +16,10 @@ pub struct Partition {
     pub cuts: [Vec<u16>; 3],
     /// Driving axis of the sliding boundaries.
     pub driving_axis: u8,
+    /// Per node row (index over the two other axes, the first fastest), cuts
+    /// along the driving axis that replace `cuts[driving_axis]` (staggered
+    /// boundaries, as after sliding or from an oracle).
+    pub row_cuts: Option<Vec<Vec<u16>>>,
 }
 
 impl Partition {
@@ -35,7 +39,53 @@ impl Partition {
         let cuts = std::array::from_fn(|a| {
             (0..=array[a]).map(|i| (u32::from(i) * u32::from(grid[a]) / u32::from(array[a])) as u16).collect()
         });
-        Ok(Self { array, cuts, driving_axis })
+        Ok(Self { array, cuts, driving_axis, row_cuts: None })
+    }
+
+    /// The oracle static partition: even cuts across the driving axis, and in
+    /// every row the driving axis cut where the measured compute cost (one value
+    /// per unit cube, x fastest) splits evenly.
+    pub fn oracle(
+        grid: [u16; 3],
+        array: [u16; 3],
+        driving_axis: u8,
+        cost: &[u64],
+    ) -> Result<Self, HostError> {
+        let mut p = Self::even(grid, array, driving_axis)?;
+        let d = usize::from(driving_axis);
+        let others: Vec<usize> = (0..3).filter(|&a| a != d).collect();
+        let (a0, a1) = (others[0], others[1]);
+        let parts = usize::from(array[d]);
+        let mut rows = Vec::new();
+        for r1 in 0..usize::from(array[a1]) {
+            for r0 in 0..usize::from(array[a0]) {
+                // Cost of each layer of this row along the driving axis.
+                let mut layer = vec![0u64; usize::from(grid[d])];
+                for c1 in p.cuts[a1][r1]..p.cuts[a1][r1 + 1] {
+                    for c0 in p.cuts[a0][r0]..p.cuts[a0][r0 + 1] {
+                        for (k, l) in layer.iter_mut().enumerate() {
+                            let mut cell = [0usize; 3];
+                            cell[d] = k;
+                            cell[a0] = usize::from(c0);
+                            cell[a1] = usize::from(c1);
+                            let i =
+                                cell[0] + usize::from(grid[0]) * (cell[1] + usize::from(grid[1]) * cell[2]);
+                            *l += cost.get(i).copied().unwrap_or(0);
+                        }
+                    }
+                }
+                rows.push(equal_cost_cuts(&layer, parts));
+            }
+        }
+        p.row_cuts = Some(rows);
+        Ok(p)
+    }
+
+    /// The row of node coordinate `c` (index over the non-driving axes).
+    fn row_of(&self, c: [u16; 3]) -> usize {
+        let d = usize::from(self.driving_axis);
+        let others: Vec<usize> = (0..3).filter(|&a| a != d).collect();
+        usize::from(c[others[0]]) + usize::from(self.array[others[0]]) * usize::from(c[others[1]])
     }
 
     /// Number of nodes.
@@ -57,9 +107,14 @@ impl Partition {
     /// The box of node `id`.
     pub fn bounds(&self, id: usize) -> CubeBox {
         let c = self.coord(id);
+        let d = usize::from(self.driving_axis);
+        let cuts = |a: usize| match &self.row_cuts {
+            Some(rows) if a == d => &rows[self.row_of(c)],
+            _ => &self.cuts[a],
+        };
         CubeBox {
-            lo: std::array::from_fn(|a| self.cuts[a][usize::from(c[a])]),
-            hi: std::array::from_fn(|a| self.cuts[a][usize::from(c[a]) + 1]),
+            lo: std::array::from_fn(|a| cuts(a)[usize::from(c[a])]),
+            hi: std::array::from_fn(|a| cuts(a)[usize::from(c[a]) + 1]),
         }
     }
 
@@ -72,6 +127,7 @@ impl Partition {
             lo: b.lo,
             hi: b.hi,
             driving_axis: self.driving_axis,
+            staggered: self.row_cuts.is_some(),
         }
     }
 
@@ -130,6 +186,29 @@ impl Partition {
         }
         Ok(())
     }
+}
+
+/// Cuts `0 = c_0 < c_1 < ... < c_parts = layers.len()` splitting the layer
+/// costs as evenly as prefix sums allow, every part at least one layer.
+pub fn equal_cost_cuts(layers: &[u64], parts: usize) -> Vec<u16> {
+    let n = layers.len();
+    let total: u64 = layers.iter().sum();
+    let mut cuts = vec![0u16];
+    let mut prefix = 0u64;
+    let mut k = 0usize;
+    for i in 1..parts {
+        let target = total as u128 * i as u128 / parts as u128;
+        // Leave room for the parts still to come; take at least one layer.
+        let min = usize::from(*cuts.last().unwrap_or(&0)) + 1;
+        let max = n - (parts - i);
+        while k < max && (k < min || u128::from(prefix + layers[k] / 2) < target) {
+            prefix += layers[k];
+            k += 1;
+        }
+        cuts.push(k as u16);
+    }
+    cuts.push(n as u16);
+    cuts
 }
 
 /// The paper's driving axis: the one along which the sphere counts of the
@@ -192,4 +271,18 @@ pub fn tiles(width: u16, height: u16, n: usize) -> Vec<[u16; 4]> {
             ]
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::equal_cost_cuts;
+
+    #[test]
+    fn equal_cost_cuts_split_evenly_and_keep_a_layer_each() {
+        assert_eq!(equal_cost_cuts(&[1; 8], 4), vec![0, 2, 4, 6, 8]);
+        // All the cost in the first two layers: each part still gets one layer.
+        assert_eq!(equal_cost_cuts(&[100, 100, 0, 0, 0, 0], 3), vec![0, 1, 2, 6]);
+        assert_eq!(equal_cost_cuts(&[0, 0, 0, 0, 50, 50], 2), vec![0, 5, 6]);
+        assert_eq!(equal_cost_cuts(&[7], 1), vec![0, 1]);
+    }
 }

@@ -66,20 +66,31 @@ pub struct RenderResult {
     pub wall: Duration,
 }
 
-/// Renders `scene` on the in-memory board.
+/// Renders `scene` on the in-memory board with the even partition.
 pub fn render_sim(scene: &Scene, opts: &RenderOptions) -> Result<RenderResult, HostError> {
-    let [w, h] = opts.size;
-    if w == 0 || h == 0 {
-        return Err(input(format!("image size {w}x{h} must be at least 1x1")));
-    }
     let axis = match opts.driving_axis {
         Some(a) if a > 2 => return Err(input(format!("driving axis {a} must be 0, 1 or 2"))),
         Some(a) => a,
         None => crate::partition::driving_axis(scene, opts.array)?,
     };
     let partition = Partition::even(scene.grid, opts.array, axis)?;
+    render_partitioned(scene, opts, partition)
+}
+
+/// Renders `scene` on the in-memory board with a given partition.
+pub fn render_partitioned(
+    scene: &Scene,
+    opts: &RenderOptions,
+    partition: Partition,
+) -> Result<RenderResult, HostError> {
+    let [w, h] = opts.size;
+    if w == 0 || h == 0 {
+        return Err(input(format!("image size {w}x{h} must be at least 1x1")));
+    }
+    let axis = partition.driving_axis;
     partition.check_capacity(scene, SimNode::capacity())?;
-    let top = class_bound(opts.array, scene.max_depth, opts.balance.map(|_| usize::from(axis)));
+    let sliding = opts.balance.is_some() || partition.row_cuts.is_some();
+    let top = class_bound(opts.array, scene.max_depth, sliding.then_some(usize::from(axis)));
     let needed = (top + 1) * u32::from(opts.level_depth);
     if opts.level_depth == 0 || needed > u32::from(SimNode::capacity().rays) {
         return Err(input(format!(

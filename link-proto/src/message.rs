@@ -206,6 +206,9 @@ pub struct Assign {
     pub hi: [u16; 3],
     /// Driving axis of the sliding boundaries (0 = x, 1 = y, 2 = z).
     pub driving_axis: u8,
+    /// Boundaries along the driving axis differ from row to row (rays may be
+    /// forwarded along it; the node sizes its pool for that).
+    pub staggered: bool,
 }
 
 /// How initial rays are created.

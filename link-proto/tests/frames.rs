@@ -106,7 +106,8 @@ fn arb_message() -> impl Strategy<Value = Message> {
             coord: a[1],
             lo: a[2],
             hi: a[3],
-            driving_axis
+            driving_axis,
+            staggered: driving_axis % 2 == 0,
         })),
         (any::<u32>(), any::<[u16; 2]>(), camera, any::<bool>(), any::<[u16; 4]>(), any::<u64>()).prop_map(
             |(frame, size, camera, eye, tile, credit)| Message::RenderStart(RenderStart {

@@ -351,7 +351,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         let Some(assign) = self.assign.filter(|_| self.phase == Phase::Loaded) else {
             return self.fail(ErrorCode::Unexpected, 0, 0);
         };
-        let sliding = r.balance.map(|_| usize::from(assign.driving_axis));
+        let sliding = (r.balance.is_some() || assign.staggered).then_some(usize::from(assign.driving_axis));
         let top = class_bound(assign.array, self.header.max_depth, sliding);
         if let Err(e) = self.pool.configure(top, r.level_depth) {
             return self.fail(ErrorCode::PoolCapacity, e.capacity, e.needed);

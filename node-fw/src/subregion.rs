@@ -264,6 +264,20 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         query: &Query,
         stats: &mut TraceStats,
     ) -> Outcome {
+        self.trace_observed(line, walk, best, query, stats, |_, _| {})
+    }
+
+    /// [`Subregion::trace`], calling `visit(cell, sphere_tests)` for every cube
+    /// walked (for cost maps; a no-op closure compiles away).
+    pub fn trace_observed(
+        &mut self,
+        line: &Line,
+        walk: &mut DigitalLine,
+        best: &mut Option<Hit>,
+        query: &Query,
+        stats: &mut TraceStats,
+        mut visit: impl FnMut([i32; 3], u32),
+    ) -> Outcome {
         self.ensure_index();
         let stamp = self.next_stamp();
         loop {
@@ -271,7 +285,10 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
             let Some(cube) = self.bounds.index(cell).filter(|_| self.owned.index(cell).is_some()) else {
                 return Outcome::Leave;
             };
-            if let Some(done) = self.test_cube(cube, line, best, query, stamp, stats) {
+            let tests_before = stats.sphere_tests;
+            let done = self.test_cube(cube, line, best, query, stamp, stats);
+            visit(cell, stats.sphere_tests - tests_before);
+            if let Some(done) = done {
                 return done;
             }
             if let Some(b) = best.filter(|b| walk.exits_at_or_after(b.t)) {
