@@ -87,8 +87,9 @@ pub enum SlidePolicy {
     Paper,
     /// Proportional to the running-time difference, under-relaxed and capped
     /// (after ALL's staggered method and GROMACS): shift `(W_b - W_l) / (W_b + W_l)
-    /// * (d_b + d_l) / (2 gamma)` cubes toward the busier node, at most 0.49 of
-    /// its extent, none below `deadband` (Q16.16 relative difference).
+    /// * (d_b + d_l) / (2 gamma)` cubes toward the busier node, on running times
+    /// smoothed over intervals, at most 0.49 of its extent, none below `deadband`
+    /// (Q16.16 relative difference); a boundary that moved holds for two intervals.
     Proportional {
         /// Under-relaxation, Q16.16 (4.0 is stable per ALL).
         gamma: u32,

@@ -702,24 +702,23 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 let give = theirs.lighter_than(&own) && theirs.under(balance.threshold);
                 (take.then_some(step), give.then_some(step))
             }
-            SlidePolicy::Proportional { gamma, deadband } => (
-                slide::proportional_shift(
-                    own.running,
-                    theirs.running,
-                    own_extent,
-                    their_extent,
-                    gamma,
-                    deadband,
-                ),
-                slide::proportional_shift(
-                    theirs.running,
-                    own.running,
-                    their_extent,
-                    own_extent,
-                    gamma,
-                    deadband,
-                ),
-            ),
+            SlidePolicy::Proportional { gamma, deadband } => {
+                // Smoothed running times, and a boundary that just moved holds
+                // still for two intervals: per-interval times are noisy.
+                let mine = slide::smooth(self.slide.smoothed.lo, own.running);
+                let yours = slide::smooth(self.slide.smoothed.hi, theirs.running);
+                self.slide.smoothed = slide::PerSide { lo: mine, hi: yours };
+                if self.slide.hold > 0 {
+                    self.slide.hold -= 1;
+                    return;
+                }
+                let take = slide::proportional_shift(mine, yours, own_extent, their_extent, gamma, deadband);
+                let give = slide::proportional_shift(yours, mine, their_extent, own_extent, gamma, deadband);
+                if take.is_some() || give.is_some() {
+                    self.slide.hold = 2;
+                }
+                (take, give)
+            }
         };
         if let Some(step) = take {
             let offer = SlideOffer { interval: k, boundary: hi.saturating_add(step) };

@@ -99,6 +99,11 @@ pub struct SlideState {
     pub neighbour_load: PerSide<Option<(u32, Load, u16)>>,
     /// This node's latest interval load.
     pub own_load: Option<(u32, Load)>,
+    /// Smoothed running time per interval of this node and of the high-side
+    /// neighbour (proportional policy): `ema += (x - ema) / 4`.
+    pub smoothed: PerSide<u64>,
+    /// Intervals the high boundary stays put after it moved (proportional policy).
+    pub hold: u32,
     /// Slides committed as receiver this frame.
     pub committed: u32,
     /// Slides refused as receiver (capacity) this frame.
@@ -114,6 +119,8 @@ impl SlideState {
             requested: PerSide { lo: false, hi: false },
             neighbour_load: PerSide { lo: None, hi: None },
             own_load: None,
+            smoothed: PerSide { lo: 0, hi: 0 },
+            hold: 0,
             committed: 0,
             refused: 0,
         }
@@ -153,6 +160,11 @@ pub fn slab(owned: CubeBox, axis: usize, side: Side, boundary: u16) -> CubeBox {
         *hi = b;
     }
     out
+}
+
+/// One step of the integer exponential moving average with weight 1/4.
+pub fn smooth(ema: u64, x: u64) -> u64 {
+    if ema == 0 { x } else { ema - ema / 4 + x / 4 }
 }
 
 /// Cubes the boundary should move toward the busier node under the
