@@ -86,10 +86,11 @@ pub enum SlidePolicy {
     /// The paper's: `step` cubes when one load is lower and under the threshold.
     Paper,
     /// Proportional to the running-time difference, under-relaxed and capped
-    /// (after ALL's staggered method and GROMACS): shift `(W_b - W_l) / (W_b + W_l)
-    /// * (d_b + d_l) / (2 gamma)` cubes toward the busier node, on running times
-    /// smoothed over intervals, at most 0.49 of its extent, none below `deadband`
-    /// (Q16.16 relative difference); a boundary that moved holds for two intervals.
+    /// (after ALL's staggered method and GROMACS): shift
+    /// `(W_b - W_l) / (W_b + W_l) * (d_b + d_l) / (2 gamma)` cubes toward the busier
+    /// node, on running times smoothed over intervals, at most 0.49 of its extent,
+    /// none below `deadband` (Q16.16 relative difference). A boundary that moved
+    /// holds for two intervals.
     Proportional {
         /// Under-relaxation, Q16.16 (4.0 is stable per ALL).
         gamma: u32,
