@@ -5,11 +5,9 @@
 //! the baseline that measures what the node machinery costs.
 
 use link_proto::{RayKind, RayMsg};
-use node_fw::camera::primary_line;
-use node_fw::shading::{Child, Q15_ONE, Scene as Shading, Surface};
-use node_fw::{
-    CubeBox, DigitalLine, Direction, Grid, Line, Material, Outcome, Point, Query, Sphere, Subregion,
-};
+use node_fw::camera::{primary_line, primary_ray};
+use node_fw::shading::{Child, Scene as Shading, Surface};
+use node_fw::{CubeBox, DigitalLine, Direction, Grid, Line, Outcome, Point, Query, Sphere, Subregion};
 use node_fw::{limits::Scalar, sphere::Hit};
 
 use crate::camera::PixelBasis;
@@ -69,17 +67,7 @@ fn render_impl(
         .assign(grid, CubeBox { lo: [0; 3], hi: scene.grid })
         .map_err(|e| input(format!("the direct renderer holds grids up to 262144 cubes: {e:?}")))?;
     for m in scene.sphere_msgs() {
-        let material = Material {
-            color: m.material.color,
-            ambient: m.material.ambient,
-            diffuse: m.material.diffuse,
-            specular: m.material.specular,
-            shininess: m.material.shininess,
-            reflect: m.material.reflect,
-        };
-        let center = Point::from_bits(m.center).map_err(|e| input(format!("sphere {}: {e:?}", m.id)))?;
-        let sphere = Sphere::new(m.id, center, Scalar::from_bits(m.radius), material, &grid)
-            .map_err(|e| input(format!("sphere {}: {e:?}", m.id)))?;
+        let sphere = Sphere::from_msg(&m, &grid).map_err(|e| input(format!("sphere {}: {e:?}", m.id)))?;
         region
             .insert(sphere)
             .map_err(|r| input(format!("direct renderer: sphere {}: {:?}", m.id, r.error)))?;
@@ -103,22 +91,7 @@ fn render_impl(
         for x in 0..width {
             let pixel = usize::from(y) * usize::from(width) + usize::from(x);
             let line = primary_line(&camera, x, y).map_err(|e| input(format!("camera: {e:?}")))?;
-            let ray = RayMsg {
-                origin: line.origin(),
-                dir: line.dir(),
-                cell: [0; 3],
-                pixel: pixel as u32,
-                weight: [Q15_ONE; 3],
-                credit: 0,
-                kind: RayKind::Primary,
-                depth: 0,
-                ignore: None,
-                best: None,
-                t_max: None,
-                class: 0,
-                tag: 0,
-            };
-            stack.push(ray);
+            stack.push(primary_ray(&line, pixel as u32, 0));
             while let Some(ray) = stack.pop() {
                 out.rays += 1;
                 let (rgb, hit) = trace(&mut region, &shading, &grid, &ray, &mut stack, costs.as_mut());

@@ -118,8 +118,9 @@ fn options(
     let mut opts = RenderOptions::new(side);
     opts.size = cfg.size;
     opts.initial = initial;
-    // The deepest pool that fits this array's class levels (at most 4).
-    let levels = node_fw::pool::class_bound(side, scene.max_depth, sliding.then_some(2)) + 1;
+    // The deepest pool that fits this array's class levels (at most 4). The
+    // arrays here are cubes, so any axis gives the bound of the driving one.
+    let levels = node_fw::pool::class_bound(side, scene.max_depth, sliding.then_some(0)) + 1;
     opts.level_depth = (u32::from(sim_board::SimNode::capacity().rays) / levels).clamp(1, 4) as u16;
     opts
 }

@@ -2,7 +2,7 @@
 //! capacity check before anything is sent.
 
 use link_proto::{Assign, Capacity};
-use node_fw::{CubeBox, Grid, Point, Sphere, limits::Scalar, sphere::Material};
+use node_fw::{CubeBox, Grid, Sphere};
 
 use crate::error::{HostError, input};
 use crate::scene::Scene;
@@ -147,11 +147,7 @@ impl Partition {
         let spheres: Vec<Sphere> = scene
             .sphere_msgs()
             .iter()
-            .map(|m| {
-                let c = Point::from_bits(m.center).map_err(|e| input(format!("sphere {}: {e:?}", m.id)))?;
-                Sphere::new(m.id, c, Scalar::from_bits(m.radius), Material::default(), &grid)
-                    .map_err(|e| input(format!("sphere {}: {e:?}", m.id)))
-            })
+            .map(|m| Sphere::from_msg(m, &grid).map_err(|e| input(format!("sphere {}: {e:?}", m.id))))
             .collect::<Result<_, _>>()?;
         for id in 0..self.len() {
             let b = self.bounds(id);

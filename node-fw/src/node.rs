@@ -19,12 +19,12 @@
 
 use heapless::{Deque, Vec};
 use link_proto::{
-    Assign, Balance, Capacity, ErrorCode, ErrorReport, Hello, HitMsg, LightMsg, LoadReport, MaterialMsg,
-    Message, PROTOCOL_VERSION, RayKind, RayMsg, RayReply, RenderStart, Retire, SceneHeader, SlideDone,
-    SlideOffer, SlidePolicy, SlideRefusal, SlideReply, SphereMsg,
+    Assign, Balance, Capacity, ErrorCode, ErrorReport, Hello, HitMsg, LightMsg, LoadReport, Message,
+    PROTOCOL_VERSION, RayKind, RayMsg, RayReply, RenderStart, Retire, SceneHeader, SlideDone, SlideOffer,
+    SlidePolicy, SlideRefusal, SlideReply, SphereMsg,
 };
 
-use crate::camera::primary_line;
+use crate::camera::{primary_line, primary_ray};
 use crate::cube_box::CubeBox;
 use crate::digital_line::DigitalLine;
 use crate::error::Error;
@@ -34,9 +34,9 @@ use crate::link::{Links, Port};
 use crate::load::{IntervalClock, Load, LoadMeter};
 use crate::pool::{RayPool, Stage, class_bound};
 use crate::route;
-use crate::shading::{Child, Q15_ONE, Scene, Surface};
+use crate::shading::{Child, Scene, Surface};
 use crate::slide::{self, Incoming, Outgoing, Side, SlideState};
-use crate::sphere::{Hit, Material, Sphere};
+use crate::sphere::{Hit, Sphere};
 use crate::subregion::{Outcome, Query, Subregion, TraceStats};
 
 /// Lights a node holds.
@@ -309,9 +309,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             return self.fail(ErrorCode::Unexpected, 0, 0);
         }
         self.spheres_seen += 1;
-        let material = material(&s.material);
-        let sphere = Point::from_bits(s.center)
-            .and_then(|c| Sphere::new(s.id, c, Scalar::from_bits(s.radius), material, &self.grid));
+        let sphere = Sphere::from_msg(&s, &self.grid);
         let sphere = sphere.and_then(|s| {
             if s.within(&self.grid) { Ok(s) } else { Err(Error::OutOfRange(crate::error::Field::Center)) }
         });
@@ -483,7 +481,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         ray.best = match best {
             Some(h) if carried.is_none_or(|c| c.t != h.t.to_bits() || c.sphere.id != h.sphere) => {
                 match self.region.sphere(h.sphere) {
-                    Some(s) => Some(HitMsg { t: h.t.to_bits(), sphere: sphere_msg(s) }),
+                    Some(s) => Some(HitMsg { t: h.t.to_bits(), sphere: s.to_msg() }),
                     None => return self.fail(ErrorCode::BadRay, ray.pixel, 5),
                 }
             }
@@ -518,10 +516,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// The sphere of a ray's best hit, from the ray itself.
     fn hit_sphere(&self, ray: &RayMsg) -> Option<(Scalar, Sphere)> {
         let hit = ray.best?;
-        let s = hit.sphere;
-        let center = Point::from_bits(s.center).ok()?;
-        let sphere =
-            Sphere::new(s.id, center, Scalar::from_bits(s.radius), material(&s.material), &self.grid).ok()?;
+        let sphere = Sphere::from_msg(&hit.sphere, &self.grid).ok()?;
         Some((Scalar::from_bits(hit.t), sphere))
     }
 
@@ -593,21 +588,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         let Ok(line) = primary_line(&r.camera, x as u16, y as u16) else {
             return self.fail(ErrorCode::OutOfRange, crate::error::Field::Direction as u32, 0);
         };
-        let mut ray = RayMsg {
-            origin: line.origin(),
-            dir: line.dir(),
-            cell: [0; 3],
-            pixel: y * u32::from(r.size[0]) + x,
-            weight: [Q15_ONE; 3],
-            credit: r.credit,
-            kind: RayKind::Primary,
-            depth: 0,
-            ignore: None,
-            best: None,
-            t_max: None,
-            class: 0,
-            tag: 0,
-        };
+        let mut ray = primary_ray(&line, y * u32::from(r.size[0]) + x, r.credit);
         let stage = match DigitalLine::enter(&line, &self.grid) {
             Some(walk) => {
                 ray.cell = walk.cell().map(|c| c as u16);
@@ -798,9 +779,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         };
         incoming.received += 1;
         if incoming.failed.is_none() {
-            let sphere = Point::from_bits(s.center).and_then(|c| {
-                Sphere::new(s.id, c, Scalar::from_bits(s.radius), material(&s.material), &self.grid)
-            });
+            let sphere = Sphere::from_msg(&s, &self.grid);
             let inserted = match sphere {
                 Ok(sphere) => self.region.insert(sphere).map(|_| ()).map_err(|r| r.error),
                 Err(e) => Err(e),
@@ -892,7 +871,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 let Some(sphere) = spheres.get(at).copied() else { break };
                 let mut touches = false;
                 slab.for_each_surface_cube(&sphere, |_| touches = true);
-                if touches && !send(links, port, Message::Sphere(sphere_msg(&sphere))) {
+                if touches && !send(links, port, Message::Sphere(sphere.to_msg())) {
                     blocked = true;
                 } else {
                     out.sent += u32::from(touches);
@@ -995,34 +974,6 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 _ => {}
             }
         }
-    }
-}
-
-fn material(m: &MaterialMsg) -> Material {
-    Material {
-        color: m.color,
-        ambient: m.ambient,
-        diffuse: m.diffuse,
-        specular: m.specular,
-        shininess: m.shininess,
-        reflect: m.reflect,
-    }
-}
-
-fn sphere_msg(s: &Sphere) -> SphereMsg {
-    let m = s.material();
-    SphereMsg {
-        id: s.id(),
-        center: s.center(),
-        radius: s.radius().to_bits(),
-        material: MaterialMsg {
-            color: m.color,
-            ambient: m.ambient,
-            diffuse: m.diffuse,
-            specular: m.specular,
-            shininess: m.shininess,
-            reflect: m.reflect,
-        },
     }
 }
 

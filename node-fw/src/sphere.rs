@@ -10,6 +10,8 @@
 //! sqrt(disc))`, `t0 = c / q`, `t1 = q / a`, which avoids `-b + sqrt(disc)`
 //! cancelling for a far small sphere or an origin near the surface.
 
+use link_proto::{MaterialMsg, SphereMsg};
+
 use crate::error::{Error, Field};
 use crate::geometry::{Grid, Line, Point};
 use crate::limits::{DIR_FRAC, MAX_RADIUS_RAW, MIN_RADIUS_RAW, Scalar};
@@ -29,6 +31,32 @@ pub struct Material {
     pub shininess: u8,
     /// Mirror reflection coefficient; 0 means no reflection rays.
     pub reflect: u16,
+}
+
+impl From<&MaterialMsg> for Material {
+    fn from(m: &MaterialMsg) -> Self {
+        Material {
+            color: m.color,
+            ambient: m.ambient,
+            diffuse: m.diffuse,
+            specular: m.specular,
+            shininess: m.shininess,
+            reflect: m.reflect,
+        }
+    }
+}
+
+impl From<&Material> for MaterialMsg {
+    fn from(m: &Material) -> Self {
+        MaterialMsg {
+            color: m.color,
+            ambient: m.ambient,
+            diffuse: m.diffuse,
+            specular: m.specular,
+            shininess: m.shininess,
+            reflect: m.reflect,
+        }
+    }
 }
 
 /// A sphere, validated against the grid and the radius limits.
@@ -79,6 +107,22 @@ impl Sphere {
             return Err(Error::OutOfRange(Field::Radius));
         }
         Ok(Self { id, center, radius, r2: i64::from(radius) * i64::from(radius), material })
+    }
+
+    /// A sphere from its wire form, validated as [`Sphere::new`] does.
+    pub fn from_msg(m: &SphereMsg, grid: &Grid) -> Result<Self, Error> {
+        let center = Point::from_bits(m.center)?;
+        Sphere::new(m.id, center, Scalar::from_bits(m.radius), Material::from(&m.material), grid)
+    }
+
+    /// The sphere's wire form.
+    pub fn to_msg(&self) -> SphereMsg {
+        SphereMsg {
+            id: self.id,
+            center: self.center,
+            radius: self.radius,
+            material: MaterialMsg::from(&self.material),
+        }
     }
 
     /// Whether the whole sphere lies in the closed box of `grid` (the scene is
