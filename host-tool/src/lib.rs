@@ -9,6 +9,7 @@ pub mod direct;
 pub mod error;
 pub mod frame;
 pub mod history;
+pub mod numerics;
 pub mod output;
 pub mod paper;
 pub mod partition;

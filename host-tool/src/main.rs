@@ -35,6 +35,20 @@ enum Command {
     /// Benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
+    /// Reports on the arithmetic.
+    #[command(subcommand)]
+    Report(ReportCommand),
+}
+
+#[derive(Subcommand)]
+enum ReportCommand {
+    /// The stiff and extreme cases of the numerics notes: a Markdown table of
+    /// what each must do and what it did (the README shows it). Exits 4 if any fails.
+    Stiff {
+        /// Also write the table here.
+        #[arg(long, value_name = "FILE.md")]
+        out: Option<PathBuf>,
+    },
 }
 
 #[derive(Subcommand)]
@@ -189,6 +203,15 @@ fn main() -> ExitCode {
         Command::Reference(args) => reference_cmd(args),
         Command::Compare(args) => compare_cmd(args),
         Command::Bench(BenchCommand::Board(args)) => bench_board(args),
+        Command::Report(ReportCommand::Stiff { out }) => {
+            let (table, pass) = host_tool::numerics::stiff_table::markdown();
+            print!("{table}");
+            match out {
+                Some(path) => write_atomic(&path, table.as_bytes()),
+                None => Ok(()),
+            }
+            .and_then(|()| if pass { Ok(()) } else { Err(HostError::Node("a stiff case failed".into())) })
+        }
         Command::Bench(BenchCommand::Paper(args)) => {
             let cfg = if args.quick {
                 host_tool::paper::PaperConfig::quick()

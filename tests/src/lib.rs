@@ -1,10 +1,5 @@
-//! References for the integration tests, written independently of the code under
-//! test: an exact rational digital line (sorting all plane crossings instead of
-//! stepping a DDA), an exact big-integer sphere decision (classic discriminant
-//! instead of Lagrange's form), and the stiff and extreme cases of
-//! `shared/notes/numerics.md` as named data.
+//! Integration tests across crates. The references they check against live in
+//! [`host_tool::numerics`] (independent of the kernels under test), so the
+//! host tool can regenerate the stiff-case table from the same code.
 
-pub mod exact_sphere;
-pub mod quantise;
-pub mod rational_walk;
-pub mod stiff;
+pub use host_tool::numerics::{exact_sphere, quantise, rational_walk, stiff};
