@@ -32,5 +32,8 @@ scripts/check-no-std.sh "$THUMB"
 step "the paper's experiments, reduced (host-tool bench paper --quick)"
 cargo run --release --locked -p host-tool -- bench paper --quick --out target/paper-quick
 
+step "error against run time of the arithmetic variants, reduced (host-tool report numerics --quick)"
+cargo run --release --locked -p host-tool -- report numerics --quick --out target/numerics-quick
+
 step "tests"
 cargo test --workspace --locked

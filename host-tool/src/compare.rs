@@ -31,6 +31,9 @@ pub struct Comparison {
     /// 99th percentile of the same (the maximum sits at grazing pixels, where
     /// depth is ill-conditioned: dt/dp = p / sqrt(r^2 - p^2)).
     pub depth_error_p99: f64,
+    /// Largest angle between the surface normals at the two hit points of a
+    /// pixel whose first hit agrees, degrees.
+    pub normal_error_max_deg: f64,
     /// Pixels compared.
     pub pixels: u64,
 }
@@ -53,6 +56,7 @@ pub fn compare(
 ) -> Comparison {
     let (mut agree, mut ambiguous, mut gross) = (0u64, 0u64, 0u64);
     let mut errors: Vec<f64> = Vec::new();
+    let mut normal_max = 0.0f64;
     let basis = PixelBasis::new(&scene.camera(), size[0], size[1]);
     let eye = DVec3::from_array(basis.eye);
     let grid = DVec3::from_array(scene.grid.map(f64::from));
@@ -67,6 +71,11 @@ pub fn compare(
             (Some(f), Some(r)) if f.sphere == r.sphere => {
                 agree += 1;
                 errors.push((f.t - r.t).abs());
+                if let Some(s) = scene.spheres.get(usize::from(f.sphere)) {
+                    let c = DVec3::from_array(s.center);
+                    let (nf, nr) = ((eye + d * f.t - c).normalize(), (eye + d * r.t - c).normalize());
+                    normal_max = normal_max.max(nf.dot(nr).clamp(-1.0, 1.0).acos().to_degrees());
+                }
             }
             (f, r) => {
                 let bound = quantisation_bound(f.map_or(0.0, |h| h.t).max(r.map_or(0.0, |h| h.t)));
@@ -109,6 +118,7 @@ pub fn compare(
             errors.sort_by(f64::total_cmp);
             errors.get(errors.len() * 99 / 100).copied().unwrap_or(0.0)
         },
+        normal_error_max_deg: normal_max,
         pixels,
     }
 }

@@ -47,12 +47,23 @@ pub fn render_with_costs(
     height: u16,
     cost: &sim_board::CostModel,
 ) -> Result<DirectImage, HostError> {
-    render_impl(scene, width, height, Some(cost))
+    render_impl(scene, width, height, Some(cost), 30)
+}
+
+/// Renders `scene` with the camera's direction basis rounded to `bits` fraction
+/// bits (instead of 30), for the numerics report.
+pub fn render_with_camera_bits(
+    scene: &Scene,
+    width: u16,
+    height: u16,
+    bits: u32,
+) -> Result<DirectImage, HostError> {
+    render_impl(scene, width, height, None, bits)
 }
 
 /// Renders `scene` at `width` x `height` with the node kernels in one loop.
 pub fn render(scene: &Scene, width: u16, height: u16) -> Result<DirectImage, HostError> {
-    render_impl(scene, width, height, None)
+    render_impl(scene, width, height, None, 30)
 }
 
 fn render_impl(
@@ -60,6 +71,7 @@ fn render_impl(
     width: u16,
     height: u16,
     cost: Option<&sim_board::CostModel>,
+    camera_bits: u32,
 ) -> Result<DirectImage, HostError> {
     let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
     let mut region: Box<Whole> = Box::new(Whole::new());
@@ -75,7 +87,14 @@ fn render_impl(
     let header = scene.header();
     let lights = scene.light_msgs();
     let shading = Shading { header: &header, grid: &grid, lights: &lights };
-    let camera = PixelBasis::new(&scene.camera(), width, height).msg();
+    let mut camera = PixelBasis::new(&scene.camera(), width, height).msg();
+    if camera_bits < 30 {
+        let drop = 30 - camera_bits;
+        let round = |v: [i32; 3]| v.map(|c| ((i64::from(c) + (1 << (drop - 1))) >> drop << drop) as i32);
+        camera.corner = round(camera.corner);
+        camera.du = round(camera.du);
+        camera.dv = round(camera.dv);
+    }
     let pixels = usize::from(width) * usize::from(height);
     let cubes = scene.grid.iter().map(|&n| usize::from(n)).product::<usize>();
     let mut out = DirectImage {

@@ -49,6 +49,16 @@ enum ReportCommand {
         #[arg(long, value_name = "FILE.md")]
         out: Option<PathBuf>,
     },
+    /// Error against run time of arithmetic variants (fixed point, f32) against
+    /// the f64 reference: CSV, Markdown table and a Pareto plot.
+    Numerics {
+        /// Output directory.
+        #[arg(long, value_name = "DIR", default_value = "numerics")]
+        out: PathBuf,
+        /// One small scene (for CI).
+        #[arg(long)]
+        quick: bool,
+    },
 }
 
 #[derive(Subcommand)]
@@ -203,6 +213,7 @@ fn main() -> ExitCode {
         Command::Reference(args) => reference_cmd(args),
         Command::Compare(args) => compare_cmd(args),
         Command::Bench(BenchCommand::Board(args)) => bench_board(args),
+        Command::Report(ReportCommand::Numerics { out, quick }) => numerics_report(&out, quick),
         Command::Report(ReportCommand::Stiff { out }) => {
             let (table, pass) = host_tool::numerics::stiff_table::markdown();
             print!("{table}");
@@ -375,6 +386,22 @@ fn bench_board(args: BoardBenchArgs) -> Result<(), HostError> {
         );
     }
     println!("]}}");
+    Ok(())
+}
+
+fn numerics_report(out: &std::path::Path, quick: bool) -> Result<(), HostError> {
+    let grid = [32; 3];
+    let mut scenes = vec![("demo".to_string(), Scene::random(400, 1986, 1.0, grid)?)];
+    let size = if quick {
+        [48, 48]
+    } else {
+        for seed in [1, 2] {
+            scenes.push((format!("1000 spheres, seed {seed}"), Scene::random(1000, seed, 1.0, grid)?));
+        }
+        [128, 128]
+    };
+    let md = host_tool::numerics::variants::report(&scenes, size, out)?;
+    print!("{md}");
     Ok(())
 }
 

@@ -9,3 +9,4 @@ pub mod quantise;
 pub mod rational_walk;
 pub mod stiff;
 pub mod stiff_table;
+pub mod variants;
