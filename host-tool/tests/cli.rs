@@ -58,6 +58,15 @@ fn bad_input_is_one_line_and_nonzero() {
         2,
         "outside the grid",
     );
+    // Found while comparing with the reference: a sphere sticking out of the grid was
+    // seen by the array but clipped by the reference. The scene is the grid.
+    fails(
+        "protruding",
+        &["render", "--scene", "scene.json"],
+        Some(r#"{"grid": [8, 8, 8], "spheres": [{"center": [7.5, 4, 4], "radius": 1}]}"#),
+        2,
+        "extends outside the grid",
+    );
     fails("malformed", &["render", "--scene", "scene.json"], Some("{\"grid\": [8, 8"), 2, "is not valid");
     fails(
         "big-array",

@@ -177,3 +177,29 @@ fn a_slide_the_receiver_cannot_hold_is_refused_and_reported() {
     let want = direct::render(&s, size[0], size[1]).unwrap();
     assert!(r.frame.sums == want.sums, "a refused slide changed the image");
 }
+
+#[test]
+fn a_node_reports_bad_input_the_host_did_not_catch() {
+    use link_proto::{Assign, ErrorCode, Message, SceneEnd, SceneHeader, SphereMsg};
+    use sim_board::{Board, SimConfig};
+    let mut board = Board::new(SimConfig::new([1, 1, 1]));
+    let header = SceneHeader { grid: [8; 3], ambient: [0; 3], background: [0; 3], max_depth: 1 };
+    board.send(0, Message::SceneBegin(header));
+    let assign =
+        Assign { array: [1; 3], coord: [0; 3], lo: [0; 3], hi: [8; 3], driving_axis: 0, staggered: false };
+    board.send(0, Message::Assign(assign));
+    // Centre inside the grid, but the sphere sticks out of it.
+    let sphere = SphereMsg {
+        id: 0,
+        center: [7 << 16, 4 << 16, 4 << 16],
+        radius: 2 << 16,
+        material: (&node_fw::Material::default()).into(),
+    };
+    board.send(0, Message::Sphere(sphere));
+    board.send(0, Message::SceneEnd(SceneEnd { spheres: 1, lights: 0 }));
+    let mut frame = host_tool::frame::FrameBuffer::new(1, 1, 1, 1);
+    board.run(&mut frame).expect("the node answers");
+    let e = frame.errors.first().expect("the node reported an error");
+    assert_eq!((e.node, e.code), (0, ErrorCode::OutOfRange));
+    assert_eq!(e.a, node_fw::Field::Center as u32);
+}

@@ -302,3 +302,11 @@ fn secondary_rays_ignore_their_own_sphere() {
     assert_eq!(trace(&mut r, &line, &grid, &q(0.5)).0, Outcome::Clear);
     assert_eq!(trace(&mut r, &line, &grid, &q(2.0)).0, Outcome::Blocked);
 }
+
+#[test]
+fn a_sphere_sticking_out_of_the_grid_is_not_within_it() {
+    let grid = Grid::new([8; 3]).unwrap();
+    assert!(sphere(0, [4.0; 3], 4.0, &grid).within(&grid), "touching the faces from inside");
+    assert!(!sphere(0, [7.5, 4.0, 4.0], 1.0, &grid).within(&grid));
+    assert!(!sphere(0, [0.2, 4.0, 4.0], 0.25, &grid).within(&grid));
+}
