@@ -24,6 +24,7 @@ pub mod link;
 pub mod load;
 pub mod node;
 pub mod pool;
+pub mod reliable;
 pub mod route;
 pub mod shading;
 pub mod slide;

@@ -1,0 +1,181 @@
+//! A reliable link over a lossy byte stream: go-back-N with cumulative acks.
+//!
+//! Serial links between boards lose and corrupt bytes; a lost ray is a wrong
+//! pixel. Each data frame carries a sequence number (the frame's CRC catches
+//! corruption, so a damaged frame is simply lost). The receiver takes frames
+//! in order only and acknowledges the last one it took, cumulatively; a frame
+//! out of order makes it send a negative acknowledgement for the one it
+//! expects. The sender keeps up to `W` unacknowledged frames and sends them
+//! all again from the oldest on a negative acknowledgement or when no
+//! acknowledgement has come for `timeout` ticks. Sans-IO: the caller passes
+//! the time in; storage is fixed at compile time.
+
+use heapless::Deque;
+use link_proto::{DecodeError, Frame, FrameDecoder, MAX_FRAME_LEN, Message, encode_frame};
+
+/// Sequence numbers wrap at 2^16; a window is far smaller, so `a` precedes
+/// `b` when the forward distance from `a` to `b` is less than half the space.
+fn precedes(a: u16, b: u16) -> bool {
+    a != b && b.wrapping_sub(a) < 0x8000
+}
+
+/// Counters of one channel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ChannelStats {
+    /// Data frames sent again.
+    pub retransmitted: u32,
+    /// Frames that failed their CRC or decoding.
+    pub corrupted: u32,
+    /// Data frames dropped as duplicates or out of order.
+    pub discarded: u32,
+}
+
+/// One direction-pair of a reliable link: sends our data, receives theirs.
+#[derive(Debug)]
+pub struct Channel<const W: usize> {
+    /// Unacknowledged data frames, oldest first.
+    unacked: Deque<Frame, W>,
+    /// Sequence number of the next new data frame.
+    next_seq: u16,
+    /// Index in `unacked` of the next frame to write.
+    resend_from: usize,
+    /// Frames at the front of `unacked` written at least once.
+    written: usize,
+    /// Last time the window made progress (an ack, or a send from its start).
+    progress_at: u64,
+    /// Sequence number expected next from the peer.
+    expected: u16,
+    /// An ack or nak to send (control frames are not sequenced).
+    control_due: Option<Message>,
+    /// An ack moved the window since the last transmit.
+    acked_now: bool,
+    decoder: FrameDecoder,
+    timeout: u64,
+    /// Counters.
+    pub stats: ChannelStats,
+}
+
+impl<const W: usize> Channel<W> {
+    /// A channel that resends after `timeout` ticks without progress.
+    pub const fn new(timeout: u64) -> Self {
+        Self {
+            unacked: Deque::new(),
+            next_seq: 0,
+            resend_from: 0,
+            written: 0,
+            progress_at: 0,
+            expected: 0,
+            control_due: None,
+            acked_now: false,
+            decoder: FrameDecoder::new(),
+            timeout,
+            stats: ChannelStats { retransmitted: 0, corrupted: 0, discarded: 0 },
+        }
+    }
+
+    /// Whether a new data message would fit in the window.
+    pub fn can_send(&self) -> bool {
+        !self.unacked.is_full()
+    }
+
+    /// Queues a data message; hands it back when the window is full.
+    pub fn send(&mut self, msg: Message) -> Result<(), Message> {
+        let frame = Frame { seq: self.next_seq, msg };
+        match self.unacked.push_back(frame) {
+            Ok(()) => {
+                self.next_seq = self.next_seq.wrapping_add(1);
+                Ok(())
+            }
+            Err(frame) => Err(frame.msg),
+        }
+    }
+
+    /// Feeds received bytes; returns in-order data messages through `deliver`.
+    pub fn receive(&mut self, bytes: &[u8], mut deliver: impl FnMut(Message)) {
+        for &b in bytes {
+            match self.decoder.push(b) {
+                None => {}
+                Some(Err(
+                    DecodeError::Oversize | DecodeError::Cobs | DecodeError::Short | DecodeError::Crc,
+                ))
+                | Some(Err(DecodeError::Body)) => self.stats.corrupted += 1,
+                Some(Ok(frame)) => self.take(frame, &mut deliver),
+            }
+        }
+    }
+
+    fn take(&mut self, frame: Frame, deliver: &mut impl FnMut(Message)) {
+        match frame.msg {
+            Message::Ack(seq) => self.acknowledged(seq),
+            Message::Nak(seq) => {
+                // Everything before `seq` arrived; resend from `seq`.
+                self.acknowledged(seq.wrapping_sub(1));
+                self.resend_from = 0;
+            }
+            msg if frame.seq == self.expected => {
+                self.expected = self.expected.wrapping_add(1);
+                self.control_due = Some(Message::Ack(frame.seq));
+                deliver(msg);
+            }
+            _ => {
+                self.stats.discarded += 1;
+                // A duplicate re-acks the last taken frame; a gap asks for the missing one.
+                self.control_due = Some(if precedes(frame.seq, self.expected) {
+                    Message::Ack(self.expected.wrapping_sub(1))
+                } else {
+                    Message::Nak(self.expected)
+                });
+            }
+        }
+    }
+
+    /// Drops every frame up to and including `seq` from the window.
+    fn acknowledged(&mut self, seq: u16) {
+        while let Some(front) = self.unacked.front() {
+            if !(front.seq == seq || precedes(front.seq, seq)) {
+                break;
+            }
+            self.unacked.pop_front();
+            self.resend_from = self.resend_from.saturating_sub(1);
+            self.written = self.written.saturating_sub(1);
+            self.acked_now = true;
+        }
+    }
+
+    /// Writes what is due at `now` (acks, new frames, resends after a time-out)
+    /// through `write`, which returns false when the byte link is full.
+    pub fn transmit(&mut self, now: u64, mut write: impl FnMut(&[u8]) -> bool) {
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        if let Some(control) = self.control_due.clone() {
+            let sent = encode_frame(&Frame { seq: 0, msg: control }, &mut buf)
+                .is_ok_and(|n| write(buf.get(..n).unwrap_or_default()));
+            if sent {
+                self.control_due = None;
+            }
+        }
+        if core::mem::take(&mut self.acked_now) || self.unacked.is_empty() {
+            self.progress_at = now;
+        }
+        if !self.unacked.is_empty() && now.saturating_sub(self.progress_at) >= self.timeout {
+            // No progress for a whole time-out: go back to the oldest frame.
+            self.resend_from = 0;
+            self.progress_at = now;
+        }
+        while let Some(frame) = self.unacked.iter().nth(self.resend_from) {
+            let Ok(n) = encode_frame(frame, &mut buf) else { break };
+            if !write(buf.get(..n).unwrap_or_default()) {
+                break;
+            }
+            if self.resend_from < self.written {
+                self.stats.retransmitted += 1;
+            }
+            self.resend_from += 1;
+            self.written = self.written.max(self.resend_from);
+        }
+    }
+
+    /// Whether data frames await acknowledgement.
+    pub fn busy(&self) -> bool {
+        !self.unacked.is_empty() || self.control_due.is_some()
+    }
+}
