@@ -1,0 +1,300 @@
+//! Fuzzing at volume (proptest): the node firmware never panics on any input
+//! and never grows without bound. Tests run with overflow checks on, so an
+//! arithmetic overflow is a panic here too.
+
+use link_proto::*;
+use node_fw::{Links, Node, Port};
+use proptest::prelude::*;
+
+type Fw = Node<64, 512, 512, 256>;
+
+/// Links that deliver a scripted list of messages and record everything sent.
+struct Script {
+    inbox: Vec<(Port, Message)>,
+    sent: usize,
+    full: bool,
+}
+
+impl Links for Script {
+    fn recv(&mut self, port: Port) -> Option<Message> {
+        let i = self.inbox.iter().position(|(p, _)| *p == port)?;
+        Some(self.inbox.remove(i).1)
+    }
+    fn try_send(&mut self, _: Port, msg: Message) -> Result<(), Message> {
+        if self.full {
+            return Err(msg);
+        }
+        self.sent += 1;
+        Ok(())
+    }
+}
+
+fn arb_port() -> impl Strategy<Value = Port> {
+    (0usize..7).prop_map(|i| Port::ALL[i])
+}
+
+fn small_i32() -> impl Strategy<Value = i32> {
+    prop_oneof![any::<i32>(), -(20 << 16)..(20 << 16), Just(0), Just(i32::MIN), Just(i32::MAX)]
+}
+
+fn arb_sphere() -> impl Strategy<Value = SphereMsg> {
+    (any::<u16>(), proptest::array::uniform3(small_i32()), small_i32(), any::<[u16; 3]>(), any::<u8>())
+        .prop_map(|(id, center, radius, color, shininess)| SphereMsg {
+            id,
+            center,
+            radius,
+            material: MaterialMsg {
+                color,
+                ambient: 9000,
+                diffuse: 20000,
+                specular: 8000,
+                shininess,
+                reflect: 12000,
+            },
+        })
+}
+
+fn arb_ray() -> impl Strategy<Value = RayMsg> {
+    (
+        proptest::array::uniform3(small_i32()),
+        proptest::array::uniform3(any::<i32>()),
+        proptest::array::uniform3(0u16..20),
+        any::<u16>(),
+        prop_oneof![Just(RayKind::Primary), Just(RayKind::Reflected), Just(RayKind::Shadow)],
+        proptest::option::of((small_i32(), arb_sphere())),
+        proptest::option::of(small_i32()),
+    )
+        .prop_map(|(origin, dir, cell, class, kind, best, t_max)| RayMsg {
+            origin,
+            dir,
+            cell,
+            pixel: class.into(),
+            weight: [32768; 3],
+            credit: 1 << 20,
+            kind,
+            depth: (class % 4) as u8,
+            ignore: None,
+            best: best.map(|(t, sphere)| HitMsg { t, sphere }),
+            t_max,
+            class: class % 40,
+            tag: class,
+        })
+}
+
+/// Messages a node may see: well-formed scene traffic and arbitrary junk.
+fn arb_message() -> impl Strategy<Value = Message> {
+    let camera = proptest::array::uniform4(proptest::array::uniform3(small_i32()))
+        .prop_map(|[eye, corner, du, dv]| CameraMsg { eye, corner, du, dv });
+    prop_oneof![
+        3 => (proptest::array::uniform3(0u16..20), any::<u8>()).prop_map(|(grid, max_depth)| Message::SceneBegin(SceneHeader {
+            grid,
+            ambient: [8000; 3],
+            background: [1000; 3],
+            max_depth: max_depth % 6,
+        })),
+        3 => (proptest::array::uniform3(0u16..4), proptest::array::uniform3(0u16..20), proptest::array::uniform3(0u16..20), 0u8..4)
+            .prop_map(|(array, lo, hi, driving_axis)| Message::Assign(Assign {
+                array,
+                coord: [0; 3],
+                lo,
+                hi,
+                driving_axis,
+                staggered: driving_axis == 1,
+            })),
+        4 => arb_sphere().prop_map(Message::Sphere),
+        1 => (proptest::array::uniform3(small_i32()), any::<u8>())
+            .prop_map(|(position, id)| Message::Light(LightMsg { id, position, color: [20000; 3] })),
+        2 => (0u32..30, 0u8..3).prop_map(|(spheres, lights)| Message::SceneEnd(SceneEnd { spheres, lights })),
+        2 => (camera, any::<[u16; 2]>(), any::<[u16; 4]>(), 0u16..6, any::<bool>()).prop_map(
+            |(camera, size, tile, level_depth, balance)| Message::RenderStart(RenderStart {
+                frame: 0,
+                size: [size[0] % 64, size[1] % 64],
+                camera,
+                initial: InitialRays::Parallel,
+                tile: tile.map(|t| t % 64),
+                credit: 1 << 32,
+                level_depth,
+                balance: balance.then_some(Balance { interval: 50, threshold: 1 << 16, step: 1, policy: SlidePolicy::Paper }),
+            })
+        ),
+        6 => arb_ray().prop_map(Message::Ray),
+        2 => (any::<u16>(), any::<bool>()).prop_map(|(tag, accepted)| Message::RayReply(RayReply { tag, accepted })),
+        1 => Just(Message::Space),
+        1 => (any::<u32>(), any::<u64>(), any::<u64>(), any::<u16>()).prop_map(|(interval, running, waiting, extent)| {
+            Message::Load(LoadReport { node: 0, interval, running, waiting, rays: 0, sphere_tests: 0, cube_steps: 0, refused: 0, extent })
+        }),
+        1 => (any::<u32>(), any::<u16>()).prop_map(|(interval, boundary)| Message::SlideOffer(SlideOffer { interval, boundary })),
+        1 => (any::<u32>(), any::<u16>()).prop_map(|(interval, boundary)| Message::SlideRequest(SlideOffer { interval, boundary })),
+        1 => (any::<u16>(), any::<u32>()).prop_map(|(boundary, spheres)| Message::SlideDone(SlideDone { boundary, spheres })),
+        1 => any::<u16>().prop_map(|boundary| Message::SlideReply(SlideReply { boundary, refused: None })),
+        1 => any::<u32>().prop_map(|frame| Message::Finish(Finish { frame })),
+        1 => any::<u16>().prop_map(|version| Message::Hello(Hello { version, node: 1, capacity: Fw::capacity() })),
+        1 => any::<u16>().prop_map(Message::Ack),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 3000, failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// Arbitrary message sequences on arbitrary ports, with links that are
+    /// sometimes full: the node never panics, and its work per poll is bounded.
+    #[test]
+    fn node_survives_arbitrary_message_sequences(
+        script in proptest::collection::vec((arb_port(), arb_message()), 1..60),
+        full_every in 2usize..6,
+    ) {
+        let mut node: Box<Fw> = Box::new(Fw::new(3));
+        let mut links = Script { inbox: script, sent: 0, full: false };
+        for step in 0..200u64 {
+            links.full = step as usize % full_every == 0;
+            let before = links.sent;
+            let work = node.poll(step * 100, &mut links);
+            // Sends per poll are bounded by what the node can hold, not by input.
+            prop_assert!(links.sent - before <= 256 + 64 + 16 + 16, "sent {} in one poll", links.sent - before);
+            prop_assert!(work.traces <= 1 && work.created <= 1);
+            if links.inbox.is_empty() && !node.pending() {
+                break;
+            }
+        }
+    }
+
+    /// Arbitrary bytes into the frame decoder: never a panic, at most one
+    /// result per delimiter, and a valid frame after the junk still decodes.
+    #[test]
+    fn decoder_survives_arbitrary_bytes(junk in proptest::collection::vec(any::<u8>(), 0..2000)) {
+        let mut dec = FrameDecoder::new();
+        let zeros = junk.iter().filter(|&&b| b == 0).count();
+        let results = junk.iter().filter_map(|&b| dec.push(b)).count();
+        prop_assert!(results <= zeros + junk.len() / MAX_FRAME_LEN + 1);
+        let mut out = [0u8; MAX_FRAME_LEN];
+        let frame = Frame { seq: 9, msg: Message::Space };
+        let n = encode_frame(&frame, &mut out).unwrap();
+        let got: Vec<_> = out[..n].iter().filter_map(|&b| dec.push(b)).collect();
+        prop_assert_eq!(got.last(), Some(&Ok(frame)));
+    }
+}
+
+/// A well-formed scene and render start, so the fuzzed tail reaches a rendering node.
+fn valid_setup(spheres: &[SphereMsg]) -> Vec<(Port, Message)> {
+    let mut v = vec![
+        (
+            Port::Host,
+            Message::SceneBegin(SceneHeader {
+                grid: [8; 3],
+                ambient: [8000; 3],
+                background: [500; 3],
+                max_depth: 2,
+            }),
+        ),
+        (
+            Port::Host,
+            Message::Assign(Assign {
+                array: [1, 1, 1],
+                coord: [0; 3],
+                lo: [0; 3],
+                hi: [8, 8, 8],
+                driving_axis: 0,
+                staggered: false,
+            }),
+        ),
+    ];
+    let mut n = 0;
+    for s in spheres {
+        v.push((Port::Host, Message::Sphere(*s)));
+        n += 1;
+    }
+    v.push((
+        Port::Host,
+        Message::Light(LightMsg { id: 0, position: [4 << 16, 20 << 16, -(10 << 16)], color: [30000; 3] }),
+    ));
+    v.push((Port::Host, Message::SceneEnd(SceneEnd { spheres: n, lights: 1 })));
+    v.push((
+        Port::Host,
+        Message::RenderStart(RenderStart {
+            frame: 0,
+            size: [8, 8],
+            camera: CameraMsg {
+                eye: [4 << 16, 4 << 16, -(12 << 16)],
+                corner: [-(1 << 28), 1 << 28, 1 << 30],
+                du: [1 << 26, 0, 0],
+                dv: [0, -(1 << 26), 0],
+            },
+            initial: InitialRays::Parallel,
+            tile: [0, 0, 8, 8],
+            credit: 1 << 32,
+            level_depth: 2,
+            balance: Some(Balance { interval: 500, threshold: 1 << 16, step: 1, policy: SlidePolicy::Paper }),
+        }),
+    ));
+    v
+}
+
+fn inside_sphere() -> impl Strategy<Value = SphereMsg> {
+    (0u16..50, proptest::array::uniform3(1i32..7), 1i32..64).prop_map(|(id, c, r)| SphereMsg {
+        id,
+        center: c.map(|x| x << 16),
+        radius: r << 10,
+        material: MaterialMsg {
+            color: [20000; 3],
+            ambient: 9000,
+            diffuse: 20000,
+            specular: 8000,
+            shininess: 8,
+            reflect: 16000,
+        },
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2000, failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// A rendering node fed arbitrary neighbour and host traffic.
+    #[test]
+    fn rendering_node_survives_arbitrary_traffic(
+        spheres in proptest::collection::vec(inside_sphere(), 0..12),
+        tail in proptest::collection::vec((arb_port(), arb_message()), 0..40),
+        full_every in 2usize..6,
+    ) {
+        let mut script = valid_setup(&spheres);
+        script.extend(tail);
+        let mut node: Box<Fw> = Box::new(Fw::new(0));
+        let mut links = Script { inbox: script, sent: 0, full: false };
+        for step in 0..400u64 {
+            links.full = step as usize % full_every == 0;
+            let before = links.sent;
+            node.poll(step * 100, &mut links);
+            prop_assert!(links.sent - before <= 256 + 64 + 16 + 16);
+            if links.inbox.is_empty() && !node.pending() {
+                break;
+            }
+        }
+    }
+}
+
+/// The fuzz fixture really renders: without junk, the node creates and retires
+/// every pixel's ray (some sends are replies and hellos; at least 64 retire).
+#[test]
+fn the_valid_setup_renders() {
+    let spheres = [SphereMsg {
+        id: 1,
+        center: [2 << 16, 4 << 16, 4 << 16],
+        radius: 1 << 16,
+        material: MaterialMsg {
+            color: [20000; 3],
+            ambient: 9000,
+            diffuse: 20000,
+            specular: 8000,
+            shininess: 8,
+            reflect: 0,
+        },
+    }];
+    let mut node: Box<Fw> = Box::new(Fw::new(0));
+    let mut links = Script { inbox: valid_setup(&spheres), sent: 0, full: false };
+    let mut traces = 0;
+    for step in 0..2000u64 {
+        traces += node.poll(step * 100, &mut links).traces;
+    }
+    assert!(!node.failed());
+    assert!(traces >= 64, "traced {traces} rays");
+    assert!(links.sent >= 64, "sent {}", links.sent);
+}
