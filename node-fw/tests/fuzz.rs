@@ -146,7 +146,7 @@ proptest! {
         let mut node: Box<Fw> = Box::new(Fw::new(3));
         let mut links = Script { inbox: script, sent: 0, full: false };
         for step in 0..200u64 {
-            links.full = step as usize % full_every == 0;
+            links.full = (step as usize).is_multiple_of(full_every);
             let before = links.sent;
             let work = node.poll(step * 100, &mut links);
             // Sends per poll are bounded by what the node can hold, not by input.
@@ -260,7 +260,7 @@ proptest! {
         let mut node: Box<Fw> = Box::new(Fw::new(0));
         let mut links = Script { inbox: script, sent: 0, full: false };
         for step in 0..400u64 {
-            links.full = step as usize % full_every == 0;
+            links.full = (step as usize).is_multiple_of(full_every);
             let before = links.sent;
             node.poll(step * 100, &mut links);
             prop_assert!(links.sent - before <= 256 + 64 + 16 + 16);
