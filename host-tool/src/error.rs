@@ -1,40 +1,83 @@
-//! Errors of the host tool: each names the problem in one line.
+//! Errors of the host tool: each names the problem in one line and maps to a
+//! documented, distinct exit code (see the README).
 
 use std::fmt;
 
-/// A host-side failure, with the process exit code it maps to.
+/// A host-side failure, by kind, with its one-line message.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum HostError {
-    /// The command line or a scene is invalid.
+    /// A scene file is not valid JSON for the schema (exit 10).
+    Malformed(String),
+    /// A NaN or infinite number (exit 11).
+    NonFinite(String),
+    /// A zero, negative or out-of-range radius (exit 12).
+    Radius(String),
+    /// A sphere outside the grid, or sticking out of it (exit 13).
+    OutsideGrid(String),
+    /// A zero-size image (exit 14).
+    ZeroSize(String),
+    /// An array larger than the grid (exit 15).
+    ArrayTooLarge(String),
+    /// A node cannot hold its part of the scene (exit 16; the node is named).
+    Capacity(String),
+    /// Any other invalid input (exit 17).
     Input(String),
-    /// A file could not be read or written.
+    /// A file could not be read or written (exit 20).
     Io(String),
-    /// A node or the array reported a failure.
+    /// A serial device is missing or busy (exit 21).
+    Serial(String),
+    /// A node or the array failed during a run (exit 30).
     Node(String),
+    /// A node speaks another protocol version (exit 31).
+    Version(String),
 }
 
 impl HostError {
-    /// Exit code: 2 bad input, 3 file trouble, 4 a node or the array failed.
+    /// The process exit code of this kind of error.
     pub fn exit_code(&self) -> i32 {
         match self {
-            HostError::Input(_) => 2,
-            HostError::Io(_) => 3,
-            HostError::Node(_) => 4,
+            HostError::Malformed(_) => 10,
+            HostError::NonFinite(_) => 11,
+            HostError::Radius(_) => 12,
+            HostError::OutsideGrid(_) => 13,
+            HostError::ZeroSize(_) => 14,
+            HostError::ArrayTooLarge(_) => 15,
+            HostError::Capacity(_) => 16,
+            HostError::Input(_) => 17,
+            HostError::Io(_) => 20,
+            HostError::Serial(_) => 21,
+            HostError::Node(_) => 30,
+            HostError::Version(_) => 31,
+        }
+    }
+
+    fn message(&self) -> &str {
+        match self {
+            HostError::Malformed(m)
+            | HostError::NonFinite(m)
+            | HostError::Radius(m)
+            | HostError::OutsideGrid(m)
+            | HostError::ZeroSize(m)
+            | HostError::ArrayTooLarge(m)
+            | HostError::Capacity(m)
+            | HostError::Input(m)
+            | HostError::Io(m)
+            | HostError::Serial(m)
+            | HostError::Node(m)
+            | HostError::Version(m) => m,
         }
     }
 }
 
 impl fmt::Display for HostError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            HostError::Input(m) | HostError::Io(m) | HostError::Node(m) => f.write_str(m),
-        }
+        f.write_str(self.message())
     }
 }
 
 impl std::error::Error for HostError {}
 
-/// Shorthand for an input error.
+/// Shorthand for an invalid-input error (exit 17).
 pub fn input(msg: impl Into<String>) -> HostError {
     HostError::Input(msg.into())
 }

@@ -317,7 +317,7 @@ fn reference_cmd(args: ReferenceArgs) -> Result<(), HostError> {
     let scene = load_scene(&args.scene)?;
     let [w, h] = args.scene.size;
     if w == 0 || h == 0 {
-        return Err(input(format!("image size {w}x{h} must be at least 1x1")));
+        return Err(HostError::ZeroSize(format!("image size {w}x{h} must be at least 1x1")));
     }
     let img = reference::render(&scene, w, h);
     write_atomic(&args.out, &png(w, h, &img.rgb8())?)?;
@@ -329,7 +329,7 @@ fn compare_cmd(args: SceneArgs) -> Result<(), HostError> {
     let scene = load_scene(&args)?;
     let [w, h] = args.size;
     if w == 0 || h == 0 {
-        return Err(input(format!("image size {w}x{h} must be at least 1x1")));
+        return Err(HostError::ZeroSize(format!("image size {w}x{h} must be at least 1x1")));
     }
     let fixed = direct::render(&scene, w, h)?;
     let fixed_rgb: Vec<u8> = fixed.sums.iter().flat_map(|px| px.map(host_tool::frame::to_srgb8)).collect();

@@ -30,7 +30,7 @@ impl Partition {
                 return Err(input(format!("array {array:?} needs at least one node per axis")));
             }
             if array[a] > grid[a] {
-                return Err(input(format!(
+                return Err(HostError::ArrayTooLarge(format!(
                     "array {}x{}x{} is larger than the grid {}x{}x{}: each node needs at least one cube per axis",
                     array[0], array[1], array[2], grid[0], grid[1], grid[2]
                 )));
@@ -162,19 +162,19 @@ impl Partition {
             let c = self.coord(id);
             let name = format!("node {id} ({},{},{})", c[0], c[1], c[2]);
             if cubes > u64::from(capacity.cubes) {
-                return Err(input(format!(
+                return Err(HostError::Capacity(format!(
                     "{name} would span {cubes} cubes; a node holds {}",
                     capacity.cubes
                 )));
             }
             if kept > u64::from(capacity.spheres) {
-                return Err(input(format!(
+                return Err(HostError::Capacity(format!(
                     "{name} would hold {kept} spheres; a node holds {}",
                     capacity.spheres
                 )));
             }
             if refs > u64::from(capacity.refs) {
-                return Err(input(format!(
+                return Err(HostError::Capacity(format!(
                     "{name} would hold {refs} sphere references; a node holds {}",
                     capacity.refs
                 )));

@@ -85,7 +85,7 @@ pub fn render_partitioned(
 ) -> Result<RenderResult, HostError> {
     let [w, h] = opts.size;
     if w == 0 || h == 0 {
-        return Err(input(format!("image size {w}x{h} must be at least 1x1")));
+        return Err(HostError::ZeroSize(format!("image size {w}x{h} must be at least 1x1")));
     }
     let axis = partition.driving_axis;
     partition.check_capacity(scene, SimNode::capacity())?;
@@ -93,7 +93,7 @@ pub fn render_partitioned(
     let top = class_bound(opts.array, scene.max_depth, sliding.then_some(usize::from(axis)));
     let needed = (top + 1) * u32::from(opts.level_depth);
     if opts.level_depth == 0 || needed > u32::from(SimNode::capacity().rays) {
-        return Err(input(format!(
+        return Err(HostError::Capacity(format!(
             "queue depth {} needs {needed} ray slots per node for this array and max_depth; a node has {}",
             opts.level_depth,
             SimNode::capacity().rays
@@ -166,7 +166,7 @@ fn broadcast(board: &mut Board, scene: &Scene, partition: &Partition, opts: &Ren
 /// The first node error as a one-line host error.
 fn node_errors(frame: &FrameBuffer, partition: &Partition) -> Result<(), HostError> {
     if let Some(&(node, version)) = frame.version_mismatch.first() {
-        return Err(HostError::Node(format!(
+        return Err(HostError::Version(format!(
             "node {node} speaks protocol version {version}, the host {}",
             link_proto::PROTOCOL_VERSION
         )));

@@ -149,7 +149,7 @@ impl Scene {
         let text = std::fs::read_to_string(path)
             .map_err(|e| HostError::Io(format!("cannot read scene {}: {e}", path.display())))?;
         let scene: Scene = serde_json::from_str(&text)
-            .map_err(|e| input(format!("scene {} is not valid: {e}", path.display())))?;
+            .map_err(|e| HostError::Malformed(format!("scene {} is not valid: {e}", path.display())))?;
         scene.validate()?;
         Ok(scene)
     }
@@ -159,7 +159,8 @@ impl Scene {
     /// grid, with random radius, colour and reflecting parameters.
     pub fn random(count: usize, seed: u64, volume_ratio: f64, grid: [u16; 3]) -> Result<Scene, HostError> {
         if !volume_ratio.is_finite() || volume_ratio <= 0.0 || volume_ratio > 1.0 {
-            return Err(input(format!("--volume-ratio must be in (0, 1], got {volume_ratio}")));
+            let msg = format!("--volume-ratio must be in (0, 1], got {volume_ratio}");
+            return Err(if volume_ratio.is_finite() { input(msg) } else { HostError::NonFinite(msg) });
         }
         if count > usize::from(u16::MAX) {
             return Err(input(format!("--spheres must be at most {}, got {count}", u16::MAX)));
@@ -308,20 +309,23 @@ impl Scene {
 fn validate_sphere(i: usize, s: &SphereDesc, g: &[f64; 3]) -> Result<(), HostError> {
     finite(&format!("sphere {i} center"), &s.center)?;
     if !s.radius.is_finite() {
-        return Err(input(format!("sphere {i} radius is not a finite number")));
+        return Err(HostError::NonFinite(format!("sphere {i} radius is not a finite number")));
     }
     if s.radius <= 0.0 {
-        return Err(input(format!("sphere {i} radius must be positive, got {}", s.radius)));
+        return Err(HostError::Radius(format!("sphere {i} radius must be positive, got {}", s.radius)));
     }
     let (lo, hi) = (1.0 / 256.0, 64.0);
     if q16(s.radius) < q16(lo) || s.radius > hi {
-        return Err(input(format!("sphere {i} radius {} is outside 1/256..=64 cubes", s.radius)));
+        return Err(HostError::Radius(format!("sphere {i} radius {} is outside 1/256..=64 cubes", s.radius)));
     }
     if (0..3).any(|a| s.center[a] < 0.0 || s.center[a] > g[a]) {
-        return Err(input(format!("sphere {i} center {:?} is outside the grid {:?}", s.center, g)));
+        return Err(HostError::OutsideGrid(format!(
+            "sphere {i} center {:?} is outside the grid {:?}",
+            s.center, g
+        )));
     }
     if (0..3).any(|a| s.center[a] - s.radius < 0.0 || s.center[a] + s.radius > g[a]) {
-        return Err(input(format!(
+        return Err(HostError::OutsideGrid(format!(
             "sphere {i} (center {:?}, radius {}) extends outside the grid {:?}; the scene is the grid",
             s.center, s.radius, g
         )));
@@ -339,7 +343,7 @@ fn finite(what: &str, v: &[f64]) -> Result<(), HostError> {
     if v.iter().all(|x| x.is_finite()) {
         Ok(())
     } else {
-        Err(input(format!("{what} holds a NaN or infinite number: {v:?}")))
+        Err(HostError::NonFinite(format!("{what} holds a NaN or infinite number: {v:?}")))
     }
 }
 

@@ -35,48 +35,61 @@ fn fails(name: &str, args: &[&str], scene: Option<&str>, code: i32, needle: &str
 const ONE_SPHERE: &str = r#"{"grid": [8, 8, 8], "spheres": [{"center": [4, 4, 4], "radius": RADIUS}]}"#;
 
 #[test]
-fn bad_input_is_one_line_and_nonzero() {
-    fails("nan", &["render", "--spheres", "10", "--volume-ratio", "NaN"], None, 2, "volume-ratio");
+fn bad_input_is_one_line_with_its_documented_exit_code() {
+    let render = |extra: &[&'static str]| [&["render"][..], extra].concat();
+    fails("nan", &render(&["--spheres", "10", "--volume-ratio", "NaN"]), None, 11, "volume-ratio");
     fails(
         "neg-radius",
-        &["render", "--scene", "scene.json"],
+        &render(&["--scene", "scene.json"]),
         Some(&ONE_SPHERE.replace("RADIUS", "-1")),
-        2,
-        "radius must be positive",
+        12,
+        "must be positive",
     );
     fails(
         "zero-radius",
-        &["render", "--scene", "scene.json"],
+        &render(&["--scene", "scene.json"]),
         Some(&ONE_SPHERE.replace("RADIUS", "0")),
-        2,
-        "radius must be positive",
+        12,
+        "must be positive",
     );
     fails(
-        "outside",
-        &["render", "--scene", "scene.json"],
-        Some(r#"{"grid": [8, 8, 8], "spheres": [{"center": [9, 4, 4], "radius": 0.5}]}"#),
-        2,
-        "outside the grid",
+        "big-radius",
+        &render(&["--scene", "scene.json"]),
+        Some(&ONE_SPHERE.replace("RADIUS", "65")),
+        12,
+        "outside 1/256",
     );
+    let outside = r#"{"grid": [8, 8, 8], "spheres": [{"center": [9, 4, 4], "radius": 0.5}]}"#;
+    fails("outside", &render(&["--scene", "scene.json"]), Some(outside), 13, "outside the grid");
     // Found while comparing with the reference: a sphere sticking out of the grid was
     // seen by the array but clipped by the reference. The scene is the grid.
+    let protruding = r#"{"grid": [8, 8, 8], "spheres": [{"center": [7.5, 4, 4], "radius": 1}]}"#;
     fails(
         "protruding",
-        &["render", "--scene", "scene.json"],
-        Some(r#"{"grid": [8, 8, 8], "spheres": [{"center": [7.5, 4, 4], "radius": 1}]}"#),
-        2,
+        &render(&["--scene", "scene.json"]),
+        Some(protruding),
+        13,
         "extends outside the grid",
     );
-    fails("malformed", &["render", "--scene", "scene.json"], Some("{\"grid\": [8, 8"), 2, "is not valid");
+    fails("malformed", &render(&["--scene", "scene.json"]), Some("{\"grid\": [8, 8"), 10, "is not valid");
+    let inf = r#"{"grid": [8, 8, 8], "spheres": [{"center": [4, 4, 4], "radius": 1e999}]}"#;
+    fails("inf", &render(&["--scene", "scene.json"]), Some(inf), 10, "is not valid");
+    fails("zero-size", &render(&["--spheres", "10", "--size", "0x10"]), None, 14, "at least 1x1");
     fails(
         "big-array",
-        &["render", "--spheres", "10", "--grid", "8x8x8", "--array", "16x2x2"],
+        &render(&["--spheres", "10", "--grid", "8x8x8", "--array", "16x2x2"]),
         None,
-        2,
+        15,
         "larger than the grid",
     );
-    fails("zero-size", &["render", "--spheres", "10", "--size", "0x10"], None, 2, "at least 1x1");
-    fails("missing", &["render", "--scene", "nope.json"], None, 3, "cannot read scene");
+    fails(
+        "capacity",
+        &render(&["--spheres", "2100", "--grid", "8x8x8", "--array", "1x1x1"]),
+        None,
+        16,
+        "node 0 (0,0,0) would hold",
+    );
+    fails("missing", &render(&["--scene", "nope.json"]), None, 20, "cannot read scene");
 }
 
 #[test]

@@ -117,7 +117,7 @@ fn capacity_overflow_names_the_node() {
     let err = render_sim(&s, &RenderOptions::new([2, 2, 2])).unwrap_err();
     let msg = err.to_string();
     assert!(msg.contains("node 0 (0,0,0)") && msg.contains("3000 spheres"), "{msg}");
-    assert_eq!(err.exit_code(), 2);
+    assert_eq!(err.exit_code(), 16);
 }
 
 #[test]
