@@ -177,6 +177,10 @@ struct RenderArgs {
     /// Plot of per-node load and boundary positions over virtual time.
     #[arg(long, value_name = "FILE.png", default_value = "loads.png")]
     plot: PathBuf,
+    /// Carry every link as bytes through the nodes' reliable channels and this
+    /// fault injector: per-frame probabilities, e.g. corrupt=0.01,drop=0.01,dup=0,delay=0,seed=1.
+    #[arg(long, value_name = "corrupt=P,drop=P,dup=P,delay=P", value_parser = parse_faults)]
+    faults: Option<sim_board::Faults>,
     /// Array of nodes.
     #[arg(long, value_name = "XxYxZ", value_parser = parse_triple, default_value = "4x4x4")]
     array: [u16; 3],
@@ -264,6 +268,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         InitialMode::Parallel => InitialRays::Parallel,
         InitialMode::Eye => InitialRays::EyeNode,
     };
+    opts.sim.faults = args.faults;
     opts.driving_axis = match args.driving_axis {
         AxisChoice::Auto => None,
         AxisChoice::View => Some(host_tool::partition::view_axis(&scene)),
@@ -456,6 +461,10 @@ fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String
         "slides": f.slides.len(),
         "refused_slides": f.refused_slides.len(),
         "rounds": r.stats.rounds,
+        "faults": opts.sim.faults.map(|f| json!({"corrupt": f.corrupt, "drop": f.drop, "dup": f.dup, "delay": f.delay, "seed": f.seed})),
+        "retransmissions": r.links.retransmitted,
+        "corrupted_frames": r.links.corrupted,
+        "discarded_frames": r.links.discarded,
         "wall_seconds": r.wall.as_secs_f64(),
         "nodes": nodes,
     });
@@ -557,6 +566,29 @@ fn history_csv(r: &RenderResult) -> String {
         s += &format!("{at},{},{},{},{},{load:.4}\n", l.node, l.interval, l.running, l.waiting);
     }
     s
+}
+
+fn parse_faults(s: &str) -> Result<sim_board::Faults, String> {
+    let mut f = sim_board::Faults { seed: 1, ..Default::default() };
+    for part in s.split(',').filter(|p| !p.is_empty()) {
+        let (key, value) = part.split_once('=').ok_or_else(|| format!("expected key=value in '{part}'"))?;
+        if key == "seed" {
+            f.seed = value.parse().map_err(|_| format!("seed '{value}' is not a whole number"))?;
+            continue;
+        }
+        let p: f64 = value.parse().map_err(|_| format!("'{value}' is not a number"))?;
+        if !(0.0..1.0).contains(&p) {
+            return Err(format!("{key}={value}: a probability in [0, 1)"));
+        }
+        match key {
+            "corrupt" => f.corrupt = p,
+            "drop" => f.drop = p,
+            "dup" => f.dup = p,
+            "delay" => f.delay = p,
+            _ => return Err(format!("unknown fault '{key}' (corrupt, drop, dup, delay, seed)")),
+        }
+    }
+    Ok(f)
 }
 
 fn parse_triple(s: &str) -> Result<[u16; 3], String> {

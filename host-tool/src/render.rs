@@ -18,7 +18,7 @@ use crate::scene::Scene;
 pub const PIXEL_CREDIT: u64 = 1 << 32;
 
 /// How to render.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RenderOptions {
     /// Nodes per axis.
     pub array: [u16; 3],
@@ -64,6 +64,8 @@ pub struct RenderResult {
     pub bytes: Vec<[u64; 7]>,
     /// Host wall time of the run.
     pub wall: Duration,
+    /// Retransmissions and damaged frames on the links (framed mode).
+    pub links: node_fw::reliable::ChannelStats,
 }
 
 /// Renders `scene` on the in-memory board with the even partition.
@@ -118,7 +120,7 @@ pub fn render_partitioned(
     board.run(&mut frame).map_err(|e| HostError::Node(format!("collecting loads failed: {e}")))?;
     node_errors(&frame, &partition)?;
     let bytes = (0..board.len()).map(|i| board.bytes_sent(i)).collect();
-    Ok(RenderResult { frame, partition, stats, bytes, wall: started.elapsed() })
+    Ok(RenderResult { frame, partition, stats, bytes, wall: started.elapsed(), links: board.link_stats() })
 }
 
 /// Sends the scene, assignments and render start to every node.

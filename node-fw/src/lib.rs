@@ -18,6 +18,7 @@ pub mod camera;
 pub mod cube_box;
 pub mod digital_line;
 pub mod error;
+pub mod framed;
 pub mod geometry;
 pub mod limits;
 pub mod link;

@@ -273,7 +273,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             },
             (p, Message::RayReply(r)) if p != Port::Host => self.take_reply(p, r),
             (p, Message::Space) if p != Port::Host => self.retry_refused(p),
-            _ => self.fail(ErrorCode::Unexpected, port as u32, 0),
+            (port, msg) => self.fail(ErrorCode::Unexpected, port as u32, 100 + kind(&msg)),
         }
     }
 
@@ -364,18 +364,26 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.intervals = r.balance.map_or(IntervalClock::idle(), |b| IntervalClock::new(now, b.interval));
         self.slide = SlideState::new();
         self.phase = Phase::Rendering;
+        // Neighbours refused while we were loading may send now.
+        self.slot_freed();
     }
 
     fn admit_ray(&mut self, port: Port, ray: RayMsg) {
         if self.phase != Phase::Rendering {
-            return self.fail(ErrorCode::Unexpected, port as u32, 0);
+            // A neighbour may start before the host's RenderStart reaches us (the
+            // links are independent): refuse; our Space follows once we start.
+            return self.reply_to_ray(port, ray.tag, false);
         }
         if ray.class > self.pool.top() {
             return self.fail(ErrorCode::ClassOverflow, u32::from(ray.class), u32::from(self.pool.top()));
         }
         let accepted = self.pool.admit(ray, Stage::Trace).is_ok();
         self.totals.refused += u32::from(!accepted);
-        let reply = RayReply { tag: ray.tag, accepted };
+        self.reply_to_ray(port, ray.tag, accepted);
+    }
+
+    fn reply_to_ray(&mut self, port: Port, tag: u16, accepted: bool) {
+        let reply = RayReply { tag, accepted };
         let (Some(queue), Some(refused)) =
             (self.replies.get_mut(port.index()), self.refused.get_mut(port.index()))
         else {
@@ -974,6 +982,32 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 _ => {}
             }
         }
+    }
+}
+
+/// A message's variant, for error reports (`b = 100 + kind`).
+fn kind(msg: &Message) -> u32 {
+    match msg {
+        Message::Hello(_) => 0,
+        Message::SceneBegin(_) => 1,
+        Message::Sphere(_) => 2,
+        Message::Light(_) => 3,
+        Message::SceneEnd(_) => 4,
+        Message::Assign(_) => 5,
+        Message::RenderStart(_) => 6,
+        Message::Ray(_) => 7,
+        Message::Retire(_) => 8,
+        Message::Load(_) => 9,
+        Message::SlideOffer(_) => 10,
+        Message::SlideReply(_) => 11,
+        Message::SlideDone(_) => 12,
+        Message::Finish(_) => 13,
+        Message::Error(_) => 14,
+        Message::Ack(_) => 15,
+        Message::Nak(_) => 16,
+        Message::RayReply(_) => 17,
+        Message::Space => 18,
+        Message::SlideRequest(_) => 19,
     }
 }
 

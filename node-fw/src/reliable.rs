@@ -90,8 +90,10 @@ impl<const W: usize> Channel<W> {
         }
     }
 
-    /// Feeds received bytes; returns in-order data messages through `deliver`.
-    pub fn receive(&mut self, bytes: &[u8], mut deliver: impl FnMut(Message)) {
+    /// Feeds received bytes; hands in-order data messages to `deliver`, which
+    /// returns false when it cannot take one: that frame is then not
+    /// acknowledged, and the sender sends it again later.
+    pub fn receive(&mut self, bytes: &[u8], mut deliver: impl FnMut(Message) -> bool) {
         for &b in bytes {
             match self.decoder.push(b) {
                 None => {}
@@ -104,7 +106,7 @@ impl<const W: usize> Channel<W> {
         }
     }
 
-    fn take(&mut self, frame: Frame, deliver: &mut impl FnMut(Message)) {
+    fn take(&mut self, frame: Frame, deliver: &mut impl FnMut(Message) -> bool) {
         match frame.msg {
             Message::Ack(seq) => self.acknowledged(seq),
             Message::Nak(seq) => {
@@ -113,9 +115,12 @@ impl<const W: usize> Channel<W> {
                 self.resend_from = 0;
             }
             msg if frame.seq == self.expected => {
-                self.expected = self.expected.wrapping_add(1);
-                self.control_due = Some(Message::Ack(frame.seq));
-                deliver(msg);
+                if deliver(msg) {
+                    self.expected = self.expected.wrapping_add(1);
+                    self.control_due = Some(Message::Ack(frame.seq));
+                } else {
+                    self.stats.discarded += 1;
+                }
             }
             _ => {
                 self.stats.discarded += 1;

@@ -81,10 +81,16 @@ fn run(seed: u64, corrupt: f64, drop: f64, dup: f64, count: u32) -> (u64, node_f
         // The wire delivers a few bytes per tick.
         let n = ab.bytes.len().min(40);
         let chunk: Vec<u8> = ab.bytes.drain(..n).collect();
-        b.receive(&chunk, |m| got_b.push(m));
+        b.receive(&chunk, |m| {
+            got_b.push(m);
+            true
+        });
         let n = ba.bytes.len().min(40);
         let chunk: Vec<u8> = ba.bytes.drain(..n).collect();
-        a.receive(&chunk, |m| got_a.push(m));
+        a.receive(&chunk, |m| {
+            got_a.push(m);
+            true
+        });
     }
     assert_eq!(got_b, (0..count).map(msg).collect::<Vec<_>>(), "A to B: every message once, in order");
     assert_eq!(got_a, (0..count / 4).map(|i| msg(1_000_000 + i)).collect::<Vec<_>>(), "B to A");

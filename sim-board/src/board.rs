@@ -2,12 +2,20 @@
 
 use std::fmt;
 
+use std::collections::VecDeque;
+
 use link_proto::Message;
+use node_fw::framed::FramedLinks;
+use node_fw::reliable::{Channel, ChannelStats};
 use node_fw::{Node, Port};
 use rayon::prelude::*;
 
 use crate::cost::{CostModel, LinkModel};
+use crate::faults::{FaultRng, Faults};
 use crate::sim_links::{PortState, SimLinks};
+
+/// A node's links when they are byte streams: reliable channels, window 8.
+pub type SimFramed = FramedLinks<8, 16>;
 
 /// The node firmware as the board runs it: 2048 spheres, 32768 sphere
 /// references, 32768 cubes (a 32^3 grid on one node) and 4096 ray slots
@@ -18,7 +26,7 @@ pub type SimNode = Node<2048, 32768, 32768, 4096>;
 const PARALLEL_MIN_ACTIVE: usize = 32;
 
 /// Board settings.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SimConfig {
     /// Nodes per axis.
     pub array: [u16; 3],
@@ -28,6 +36,9 @@ pub struct SimConfig {
     pub link: LinkModel,
     /// Node-to-host links.
     pub host_link: LinkModel,
+    /// When set, every link carries bytes (CRC-checked frames through the
+    /// node firmware's reliable channels) through this fault injector.
+    pub faults: Option<Faults>,
 }
 
 impl SimConfig {
@@ -38,6 +49,7 @@ impl SimConfig {
             cost: CostModel::default(),
             link: LinkModel::default(),
             host_link: LinkModel { capacity: 64, ..LinkModel::default() },
+            faults: None,
         }
     }
 }
@@ -103,16 +115,25 @@ struct Slot {
     ports: [PortState; 7],
     wired: [bool; 7],
     miswired: Option<Port>,
+    /// Framed mode: the node's reliable channels and one fault generator per port.
+    framed: Option<Box<SimFramed>>,
+    rng: [FaultRng; 7],
 }
 
 impl Slot {
     fn next_arrival(&self) -> Option<u64> {
-        self.ports.iter().filter_map(|p| p.inbox.front().map(|(at, _)| *at)).min()
+        let messages = self.ports.iter().filter_map(|p| p.inbox.front().map(|(at, _)| *at));
+        let bytes = self.ports.iter().filter_map(|p| p.wire.front().map(|(at, _)| *at));
+        messages.chain(bytes).min()
+    }
+
+    fn channels_busy(&self) -> bool {
+        self.framed.as_ref().is_some_and(|f| f.busy())
     }
 
     /// When this node next has something to do, if ever without new input.
     fn next_event(&self) -> Option<u64> {
-        let own = self.node.pending().then_some(self.clock);
+        let own = (self.node.pending() || self.channels_busy()).then_some(self.clock);
         match (own, self.next_arrival()) {
             (Some(a), Some(b)) => Some(a.min(b.max(self.clock))),
             (a, b) => a.or(b.map(|b| b.max(self.clock))),
@@ -121,6 +142,9 @@ impl Slot {
 
     /// Runs the node until `end`; returns whether it did any work.
     fn run(&mut self, end: u64, config: &SimConfig) -> bool {
+        if self.framed.is_some() {
+            return self.run_framed(end, config);
+        }
         let mut worked = false;
         while self.clock < end {
             let mut links = SimLinks {
@@ -148,6 +172,78 @@ impl Slot {
     }
 }
 
+impl Slot {
+    /// Framed mode: bytes in, node poll through its reliable channels, bytes out.
+    fn run_framed(&mut self, end: u64, config: &SimConfig) -> bool {
+        let faults = config.faults.unwrap_or_default();
+        let mut worked = false;
+        while self.clock < end {
+            let Some(framed) = self.framed.as_mut() else { return worked };
+            for port in Port::ALL {
+                let wire = &mut self.ports[port.index()].wire;
+                while wire.front().is_some_and(|(at, _)| *at <= self.clock) {
+                    if let Some((_, bytes)) = wire.pop_front() {
+                        framed.ingest(port, &bytes);
+                    }
+                }
+            }
+            let work = self.node.poll(self.clock, framed.as_mut());
+            let (clock, wired, ports, rng) = (self.clock, self.wired, &mut self.ports, &mut self.rng);
+            let mut miswired = None;
+            framed.transmit(clock, |port, bytes| {
+                let p = port.index();
+                if !wired[p] {
+                    miswired = Some(port);
+                    return false;
+                }
+                let model = if port == Port::Host { config.host_link } else { config.link };
+                write_frame(&mut ports[p], &mut rng[p], &faults, model, clock, bytes)
+            });
+            self.miswired = self.miswired.or(miswired);
+            if work.is_busy() {
+                worked = true;
+                self.clock += config.cost.charge(&work);
+                continue;
+            }
+            self.clock = match self.next_arrival() {
+                Some(at) if at > self.clock && at < end => at,
+                _ => end,
+            };
+        }
+        worked
+    }
+}
+
+/// Puts one frame on a port's wire through the fault injector; false when the
+/// wire is full (the channel keeps the frame and tries again).
+fn write_frame(
+    state: &mut PortState,
+    rng: &mut FaultRng,
+    faults: &Faults,
+    model: LinkModel,
+    now: u64,
+    bytes: &[u8],
+) -> bool {
+    if state.occupancy + state.wire_out.len() >= model.capacity {
+        return false;
+    }
+    let start = now.max(state.busy_until);
+    state.busy_until = start + bytes.len() as u64 * model.byte;
+    state.bytes += bytes.len() as u64;
+    let fate = rng.fate(faults, bytes);
+    let arrival = state.busy_until + model.latency * if fate.delayed { 5 } else { 1 };
+    for _ in 0..fate.copies {
+        state.wire_out.push((arrival, fate.bytes.clone()));
+    }
+    true
+}
+
+/// Inserts a frame into a wire kept in arrival order (delays can reorder).
+fn arrive(wire: &mut VecDeque<(u64, Vec<u8>)>, at: u64, bytes: Vec<u8>) {
+    let pos = wire.iter().rposition(|(t, _)| *t <= at).map_or(0, |i| i + 1);
+    wire.insert(pos, (at, bytes));
+}
+
 /// Builds `count` boxed nodes on a thread with a large stack: a node is about a
 /// megabyte and `Box::new` may build it on the stack first, which overflows the
 /// 2 MiB stack of a test thread.
@@ -168,6 +264,11 @@ pub struct Board {
     slots: Vec<Slot>,
     neighbours: Vec<[Option<usize>; 6]>,
     rounds: u64,
+    /// Framed mode: the host's channel to each node, what waits to enter it,
+    /// and the fault generator of each host-to-node wire.
+    host_channels: Vec<Channel<8>>,
+    host_backlog: Vec<VecDeque<Message>>,
+    host_rng: Vec<FaultRng>,
 }
 
 impl Board {
@@ -204,9 +305,35 @@ impl Board {
                 ports: Default::default(),
                 wired,
                 miswired: None,
+                framed: config.faults.map(|_| Box::new(SimFramed::new(channel_timeout(&config)))),
+                rng: std::array::from_fn(|p| FaultRng::new(config.faults.map_or(0, |f| f.seed), id, p)),
             });
         }
-        Self { config, slots, neighbours, rounds: 0 }
+        let framed = config.faults.is_some();
+        let seed = config.faults.map_or(0, |f| f.seed);
+        Self {
+            host_channels: (0..if framed { count } else { 0 })
+                .map(|_| Channel::new(channel_timeout(&config)))
+                .collect(),
+            host_backlog: vec![VecDeque::new(); if framed { count } else { 0 }],
+            host_rng: (0..count).map(|id| FaultRng::new(seed ^ 0x5EED, id, 7)).collect(),
+            config,
+            slots,
+            neighbours,
+            rounds: 0,
+        }
+    }
+
+    /// Retransmissions, corrupted frames and discarded frames over every
+    /// channel (framed mode).
+    pub fn link_stats(&self) -> ChannelStats {
+        let nodes = self.slots.iter().filter_map(|s| s.framed.as_ref().map(|f| f.stats()));
+        let host = self.host_channels.iter().map(|c| c.stats);
+        nodes.chain(host).fold(ChannelStats::default(), |a, c| ChannelStats {
+            retransmitted: a.retransmitted + c.retransmitted,
+            corrupted: a.corrupted + c.corrupted,
+            discarded: a.discarded + c.discarded,
+        })
     }
 
     /// Number of nodes.
@@ -236,6 +363,10 @@ impl Board {
 
     /// Queues a host-to-node message; it arrives at the node's current time.
     pub fn send(&mut self, node: usize, msg: Message) {
+        if let Some(backlog) = self.host_backlog.get_mut(node) {
+            backlog.push_back(msg);
+            return;
+        }
         let slot = &mut self.slots[node];
         let at = slot.clock;
         slot.ports[Port::Host.index()].inbox.push_back((at, msg));
@@ -246,7 +377,10 @@ impl Board {
         let lookahead = self.config.link.latency.min(self.config.host_link.latency).max(1);
         let mut now = self.slots.iter().map(|s| s.clock).min().unwrap_or(0);
         while !host.finished() {
-            let Some(start) = self.slots.iter().filter_map(Slot::next_event).min() else {
+            let host_busy = self.host_channels.iter().any(Channel::busy)
+                || self.host_backlog.iter().any(|b| !b.is_empty());
+            let next = self.slots.iter().filter_map(Slot::next_event).min();
+            let Some(start) = next.or(host_busy.then_some(now)) else {
                 let nodes_pending = self.slots.iter().filter(|s| s.node.pending()).count();
                 return Err(SimError::Deadlock { at: now, nodes_pending });
             };
@@ -258,12 +392,10 @@ impl Board {
             {
                 return Err(SimError::Miswired { node: node as u16, port });
             }
-            let in_flight = self.deliver(host);
-            if !worked
-                && !in_flight
-                && self.slots.iter().all(|s| s.next_arrival().is_none())
-                && !host.finished()
-            {
+            let in_flight = self.deliver(host, end);
+            let quiet =
+                self.slots.iter().all(|s| s.next_arrival().is_none() && !s.channels_busy()) && !host_busy;
+            if !worked && !in_flight && quiet && !host.finished() {
                 let nodes_pending = self.slots.iter().filter(|s| s.node.pending()).count();
                 return Err(SimError::Deadlock { at: end, nodes_pending });
             }
@@ -279,7 +411,7 @@ impl Board {
             for p in 0..6 {
                 if let Some(j) = self.neighbours[i][p] {
                     let back = Port::NEIGHBOURS[p].opposite().index();
-                    let occ = self.slots[j].ports[back].inbox.len();
+                    let occ = self.slots[j].ports[back].inbox.len() + self.slots[j].ports[back].wire.len();
                     self.slots[i].ports[p].occupancy = occ;
                 }
             }
@@ -308,8 +440,8 @@ impl Board {
 
     /// Moves this round's sends into the receivers' inboxes in a fixed order;
     /// returns whether any message moved.
-    fn deliver(&mut self, host: &mut impl HostEndpoint) -> bool {
-        let mut moved = false;
+    fn deliver(&mut self, host: &mut impl HostEndpoint, now: u64) -> bool {
+        let mut moved = self.deliver_frames(host, now);
         let mut to_host = Vec::new();
         for i in 0..self.slots.len() {
             for p in 0..7 {
@@ -334,4 +466,66 @@ impl Board {
         }
         moved
     }
+
+    /// Framed mode: moves this round's frames onto the peers' wires, runs the
+    /// host's channels (frames in, acks and backlog out); returns whether any moved.
+    fn deliver_frames(&mut self, host: &mut impl HostEndpoint, now: u64) -> bool {
+        if self.host_channels.is_empty() {
+            return false;
+        }
+        let faults = self.config.faults.unwrap_or_default();
+        let mut moved = false;
+        let mut to_host: Vec<(u64, usize, Vec<u8>)> = Vec::new();
+        for i in 0..self.slots.len() {
+            for p in 0..7 {
+                let out = std::mem::take(&mut self.slots[i].ports[p].wire_out);
+                moved |= !out.is_empty();
+                for (at, bytes) in out {
+                    if p == Port::Host.index() {
+                        to_host.push((at, i, bytes));
+                    } else if let Some(j) = self.neighbours[i][p] {
+                        let back = Port::NEIGHBOURS[p].opposite().index();
+                        arrive(&mut self.slots[j].ports[back].wire, at, bytes);
+                    }
+                }
+            }
+        }
+        to_host.sort_by_key(|(at, node, _)| (*at, *node));
+        for (at, node, bytes) in to_host {
+            self.host_channels[node].receive(&bytes, |m| {
+                host.receive(node as u16, at, m);
+                true
+            });
+        }
+        let latency = self.config.host_link.latency;
+        for node in 0..self.host_channels.len() {
+            let channel = &mut self.host_channels[node];
+            while channel.can_send() {
+                let Some(msg) = self.host_backlog[node].pop_front() else { break };
+                if let Err(msg) = channel.send(msg) {
+                    self.host_backlog[node].push_front(msg);
+                    break;
+                }
+            }
+            let (rng, wire) =
+                (&mut self.host_rng[node], &mut self.slots[node].ports[Port::Host.index()].wire);
+            channel.transmit(now, |bytes| {
+                let fate = rng.fate(&faults, bytes);
+                let at = now + latency * if fate.delayed { 5 } else { 1 };
+                for _ in 0..fate.copies {
+                    arrive(wire, at, fate.bytes.clone());
+                }
+                moved = true;
+                true
+            });
+        }
+        moved
+    }
+}
+
+/// Resend time-out of the reliable channels: a few round trips of the slowest link.
+fn channel_timeout(config: &SimConfig) -> u64 {
+    let frame = link_proto::MAX_FRAME_LEN as u64;
+    let trip = |l: &LinkModel| 2 * (l.latency + frame * l.byte);
+    4 * trip(&config.link).max(trip(&config.host_link))
 }

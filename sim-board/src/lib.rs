@@ -11,7 +11,9 @@
 
 pub mod board;
 pub mod cost;
+pub mod faults;
 pub mod sim_links;
 
 pub use board::{Board, HostEndpoint, RunStats, SimConfig, SimError, SimNode};
 pub use cost::{CostModel, LinkModel};
+pub use faults::Faults;

@@ -21,6 +21,10 @@ pub struct PortState {
     pub busy_until: u64,
     /// Bytes sent on the port.
     pub bytes: u64,
+    /// Framed mode: byte chunks (one frame each) arriving on this port, by arrival.
+    pub wire: VecDeque<(u64, Vec<u8>)>,
+    /// Framed mode: frames this node wrote on the port this round.
+    pub wire_out: Vec<(u64, Vec<u8>)>,
 }
 
 /// [`Links`] over a node's seven [`PortState`]s at virtual time `now`.

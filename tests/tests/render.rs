@@ -203,3 +203,37 @@ fn a_node_reports_bad_input_the_host_did_not_catch() {
     assert_eq!((e.node, e.code), (0, ErrorCode::OutOfRange));
     assert_eq!(e.a, node_fw::Field::Center as u32);
 }
+
+#[test]
+fn lossy_links_keep_the_image_bit_identical() {
+    let s = scene(0.6, 3);
+    let size = [48, 40];
+    let want = direct::render(&s, size[0], size[1]).unwrap();
+    let faults = |seed| sim_board::Faults { corrupt: 0.01, drop: 0.01, dup: 0.0, delay: 0.0, seed };
+    for (seed, balance) in [(1, false), (2, true)] {
+        let mut opts = RenderOptions::new([4, 4, 4]);
+        opts.size = size;
+        opts.sim.faults = Some(faults(seed));
+        if balance {
+            opts.driving_axis = Some(2);
+            opts.balance = Some(link_proto::Balance {
+                interval: 50_000,
+                threshold: 3 << 16,
+                step: 1,
+                policy: link_proto::SlidePolicy::Paper,
+            });
+        }
+        let r = render_sim(&s, &opts).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        assert_eq!(r.frame.rays_created, r.frame.rays_terminated, "seed {seed}: rays lost");
+        assert!(r.frame.sums == want.sums, "seed {seed}: faults changed the image");
+        assert!(r.links.retransmitted > 50, "seed {seed}: {:?}", r.links);
+        assert!(r.links.corrupted > 10, "seed {seed}: {:?}", r.links);
+    }
+    // Duplicates and delays (reordering) on top.
+    let mut opts = RenderOptions::new([2, 2, 2]);
+    opts.size = size;
+    opts.sim.faults = Some(sim_board::Faults { corrupt: 0.02, drop: 0.02, dup: 0.02, delay: 0.02, seed: 3 });
+    let r = render_sim(&s, &opts).expect("finishes");
+    assert!(r.frame.sums == want.sums, "duplicates and delays changed the image");
+    assert_eq!(r.frame.rays_created, r.frame.rays_terminated);
+}

@@ -1,0 +1,71 @@
+//! The node's links over byte streams: one reliable channel per port.
+//!
+//! [`FramedLinks`] is what a node sees as its [`Links`] when its ports are
+//! byte streams (UARTs on boards, faulty wires in the simulator): messages
+//! travel as CRC-checked frames through a go-back-N [`Channel`] per port, so a
+//! corrupted, lost or duplicated frame costs time, never a message. The owner
+//! moves bytes: [`FramedLinks::ingest`] what arrived, [`FramedLinks::transmit`]
+//! what is due.
+
+use heapless::Deque;
+use link_proto::Message;
+
+use crate::link::{Links, Port};
+use crate::reliable::{Channel, ChannelStats};
+
+/// Seven reliable channels with a window of `W` frames and `Q` received
+/// messages waiting per port.
+pub struct FramedLinks<const W: usize, const Q: usize> {
+    channels: [Channel<W>; 7],
+    inbox: [Deque<Message, Q>; 7],
+}
+
+impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
+    /// Channels that resend after `timeout` ticks without progress.
+    pub fn new(timeout: u64) -> Self {
+        Self { channels: core::array::from_fn(|_| Channel::new(timeout)), inbox: [const { Deque::new() }; 7] }
+    }
+
+    /// Feeds bytes that arrived on `port`.
+    pub fn ingest(&mut self, port: Port, bytes: &[u8]) {
+        let i = port.index();
+        if let (Some(channel), Some(inbox)) = (self.channels.get_mut(i), self.inbox.get_mut(i)) {
+            channel.receive(bytes, |m| inbox.push_back(m).is_ok());
+        }
+    }
+
+    /// Writes what is due on every port at `now`; `write` returns false when a
+    /// port's byte link is full.
+    pub fn transmit(&mut self, now: u64, mut write: impl FnMut(Port, &[u8]) -> bool) {
+        for (channel, port) in self.channels.iter_mut().zip(Port::ALL) {
+            channel.transmit(now, |bytes| write(port, bytes));
+        }
+    }
+
+    /// Whether frames await acknowledgement or control frames are due.
+    pub fn busy(&self) -> bool {
+        self.channels.iter().any(Channel::busy) || self.inbox.iter().any(|q| !q.is_empty())
+    }
+
+    /// Counters summed over the seven channels.
+    pub fn stats(&self) -> ChannelStats {
+        self.channels.iter().fold(ChannelStats::default(), |a, c| ChannelStats {
+            retransmitted: a.retransmitted + c.stats.retransmitted,
+            corrupted: a.corrupted + c.stats.corrupted,
+            discarded: a.discarded + c.stats.discarded,
+        })
+    }
+}
+
+impl<const W: usize, const Q: usize> Links for FramedLinks<W, Q> {
+    fn recv(&mut self, port: Port) -> Option<Message> {
+        self.inbox.get_mut(port.index())?.pop_front()
+    }
+
+    fn try_send(&mut self, port: Port, msg: Message) -> Result<(), Message> {
+        match self.channels.get_mut(port.index()) {
+            Some(channel) => channel.send(msg),
+            None => Err(msg),
+        }
+    }
+}
