@@ -30,6 +30,10 @@ pub struct FrameBuffer {
     pub version_mismatch: Vec<(u16, u16)>,
     /// Whether the host is collecting final loads (after `Finish`).
     pub finishing: bool,
+    /// Hellos received per node: a second one means the node restarted.
+    pub hellos: Vec<u32>,
+    /// Nodes that said hello again mid-frame (restarted).
+    pub restarted: Vec<u16>,
     /// Interval load reports: (arrival time, report).
     pub history: Vec<(u64, LoadReport)>,
     /// Committed slides: (arrival time, receiving node, new boundary position).
@@ -55,6 +59,8 @@ impl FrameBuffer {
             errors: Vec::new(),
             version_mismatch: Vec::new(),
             finishing: false,
+            hellos: vec![0; nodes],
+            restarted: Vec::new(),
             history: Vec::new(),
             slides: Vec::new(),
             refused_slides: Vec::new(),
@@ -107,6 +113,14 @@ impl HostEndpoint for FrameBuffer {
             Message::Hello(h) if h.version != PROTOCOL_VERSION => {
                 self.version_mismatch.push((node, h.version))
             }
+            Message::Hello(_) => {
+                if let Some(n) = self.hellos.get_mut(usize::from(node)) {
+                    *n += 1;
+                    if *n > 1 {
+                        self.restarted.push(node);
+                    }
+                }
+            }
             _ => {}
         }
     }
@@ -114,6 +128,7 @@ impl HostEndpoint for FrameBuffer {
     fn finished(&self) -> bool {
         !self.errors.is_empty()
             || !self.version_mismatch.is_empty()
+            || !self.restarted.is_empty()
             || if self.finishing { self.loads.iter().all(Option::is_some) } else { self.complete() }
     }
 }

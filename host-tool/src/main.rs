@@ -181,6 +181,12 @@ struct RenderArgs {
     /// fault injector: per-frame probabilities, e.g. corrupt=0.01,drop=0.01,dup=0,delay=0,seed=1.
     #[arg(long, value_name = "corrupt=P,drop=P,dup=P,delay=P", value_parser = parse_faults)]
     faults: Option<sim_board::Faults>,
+    /// Fault injection: reset node N at virtual cycle C mid-render (it must be detected).
+    #[arg(long, value_name = "N@C", value_parser = parse_restart)]
+    restart_node: Option<(u16, u64)>,
+    /// Give up when no node has answered the host for this many virtual cycles.
+    #[arg(long, value_name = "CYCLES", default_value_t = 200_000_000)]
+    watchdog: u64,
     /// Array of nodes.
     #[arg(long, value_name = "XxYxZ", value_parser = parse_triple, default_value = "4x4x4")]
     array: [u16; 3],
@@ -269,6 +275,8 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         InitialMode::Eye => InitialRays::EyeNode,
     };
     opts.sim.faults = args.faults;
+    opts.sim.restart = args.restart_node;
+    opts.sim.watchdog = args.watchdog;
     opts.driving_axis = match args.driving_axis {
         AxisChoice::Auto => None,
         AxisChoice::View => Some(host_tool::partition::view_axis(&scene)),
@@ -589,6 +597,14 @@ fn parse_faults(s: &str) -> Result<sim_board::Faults, String> {
         }
     }
     Ok(f)
+}
+
+fn parse_restart(s: &str) -> Result<(u16, u64), String> {
+    let (node, at) =
+        s.split_once('@').ok_or_else(|| format!("expected NODE@CYCLES such as 5@1000000, got '{s}'"))?;
+    let node = node.parse().map_err(|_| format!("node '{node}' is not a whole number"))?;
+    let at = at.parse().map_err(|_| format!("cycle '{at}' is not a whole number"))?;
+    Ok((node, at))
 }
 
 fn parse_triple(s: &str) -> Result<[u16; 3], String> {

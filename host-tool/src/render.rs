@@ -107,11 +107,13 @@ pub fn render_partitioned(
     broadcast(&mut board, scene, &partition, opts);
 
     let mut tracked = Tracked { frame: &mut frame, started, bar: None };
-    let stats = board.run(&mut tracked).map_err(|e| HostError::Node(format!("render failed: {e}")))?;
+    let run = board.run(&mut tracked);
     if let Some(bar) = tracked.bar.take() {
         bar.finish_and_clear();
     }
+    // A node's own report (or restart) explains a failed run better than the stall it causes.
     node_errors(&frame, &partition)?;
+    let stats = run.map_err(|e| HostError::Node(format!("render failed: {e}")))?;
 
     frame.finishing = true;
     for id in 0..board.len() {
@@ -171,6 +173,13 @@ fn node_errors(frame: &FrameBuffer, partition: &Partition) -> Result<(), HostErr
         return Err(HostError::Version(format!(
             "node {node} speaks protocol version {version}, the host {}",
             link_proto::PROTOCOL_VERSION
+        )));
+    }
+    if let Some(&node) = frame.restarted.first() {
+        let c = partition.coord(usize::from(node));
+        return Err(HostError::Node(format!(
+            "node {node} ({},{},{}) restarted mid-render (it said hello again); no image written",
+            c[0], c[1], c[2]
         )));
     }
     let Some(e) = frame.errors.first() else { return Ok(()) };

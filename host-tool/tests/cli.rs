@@ -114,3 +114,10 @@ fn default_render_writes_image_loads_and_summary() {
     let png = image::open(dir.join("render.png")).unwrap();
     assert_eq!((png.width(), png.height()), (32, 24));
 }
+
+#[test]
+fn a_node_restarting_mid_render_is_named_and_no_image_is_written() {
+    let args =
+        ["render", "--spheres", "200", "--array", "2x2x2", "--size", "64x64", "--restart-node", "5@500000"];
+    fails("restart", &args, None, 30, "node 5 (1,0,1) restarted mid-render");
+}

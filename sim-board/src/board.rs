@@ -39,6 +39,11 @@ pub struct SimConfig {
     /// When set, every link carries bytes (CRC-checked frames through the
     /// node firmware's reliable channels) through this fault injector.
     pub faults: Option<Faults>,
+    /// Restart node `.0` (a fresh firmware state, as after a reset) at virtual time `.1`.
+    pub restart: Option<(u16, u64)>,
+    /// Stop with [`SimError::Stalled`] when no node has sent the host anything
+    /// for this many cycles while the host waits.
+    pub watchdog: u64,
 }
 
 impl SimConfig {
@@ -50,6 +55,8 @@ impl SimConfig {
             link: LinkModel::default(),
             host_link: LinkModel { capacity: 64, ..LinkModel::default() },
             faults: None,
+            restart: None,
+            watchdog: 200_000_000,
         }
     }
 }
@@ -72,6 +79,13 @@ pub enum SimError {
         /// Nodes that still hold work.
         nodes_pending: usize,
     },
+    /// No node sent the host anything for the watchdog's time.
+    Stalled {
+        /// Virtual time of the last message to the host.
+        since: u64,
+        /// Nodes that still hold work.
+        nodes: Vec<u16>,
+    },
     /// A node sent through a port with no neighbour.
     Miswired {
         /// The node.
@@ -92,6 +106,12 @@ impl fmt::Display for SimError {
             }
             SimError::Miswired { node, port } => {
                 write!(f, "node {node} sent through {port:?}, which has no neighbour")
+            }
+            SimError::Stalled { since, nodes } => {
+                write!(
+                    f,
+                    "no node has answered the host since virtual time {since}; nodes still holding work: {nodes:?}"
+                )
             }
         }
     }
@@ -247,8 +267,9 @@ fn arrive(wire: &mut VecDeque<(u64, Vec<u8>)>, at: u64, bytes: Vec<u8>) {
 /// Builds `count` boxed nodes on a thread with a large stack: a node is about a
 /// megabyte and `Box::new` may build it on the stack first, which overflows the
 /// 2 MiB stack of a test thread.
-fn build_nodes(count: usize) -> Vec<Box<SimNode>> {
-    let build = move || (0..count).map(|id| Box::new(SimNode::new(id as u16))).collect::<Vec<_>>();
+fn build_nodes(first: usize, count: usize) -> Vec<Box<SimNode>> {
+    let build =
+        move || (first..first + count).map(|id| Box::new(SimNode::new(id as u16))).collect::<Vec<_>>();
     std::thread::Builder::new()
         .name("sim-board-build".into())
         .stack_size(64 << 20)
@@ -269,6 +290,9 @@ pub struct Board {
     host_channels: Vec<Channel<8>>,
     host_backlog: Vec<VecDeque<Message>>,
     host_rng: Vec<FaultRng>,
+    /// Arrival time of the latest node-to-host message.
+    last_to_host: u64,
+    restarted: bool,
 }
 
 impl Board {
@@ -278,7 +302,7 @@ impl Board {
         let count = nx * ny * nz;
         let mut neighbours = Vec::with_capacity(count);
         let mut slots = Vec::with_capacity(count);
-        let mut nodes = build_nodes(count).into_iter();
+        let mut nodes = build_nodes(0, count).into_iter();
         for id in 0..count {
             let c = [id % nx, (id / nx) % ny, id / (nx * ny)];
             let n: [Option<usize>; 6] = std::array::from_fn(|p| {
@@ -321,6 +345,8 @@ impl Board {
             slots,
             neighbours,
             rounds: 0,
+            last_to_host: 0,
+            restarted: false,
         }
     }
 
@@ -385,6 +411,14 @@ impl Board {
                 return Err(SimError::Deadlock { at: now, nodes_pending });
             };
             let end = start + lookahead;
+            self.restart_if_due(end);
+            if end.saturating_sub(self.last_to_host) > self.config.watchdog {
+                let nodes = (0..self.slots.len())
+                    .filter(|&i| self.slots[i].node.pending())
+                    .map(|i| i as u16)
+                    .collect();
+                return Err(SimError::Stalled { since: self.last_to_host, nodes });
+            }
             let worked = self.round(end);
             self.rounds += 1;
             if let Some((node, port)) =
@@ -462,9 +496,29 @@ impl Board {
         // The host takes messages in arrival order (ties by node), whatever the threads did.
         to_host.sort_by_key(|(at, node, _)| (*at, *node));
         for (at, node, msg) in to_host {
+            if progresses(&msg) {
+                self.last_to_host = self.last_to_host.max(at);
+            }
             host.receive(node, at, msg);
         }
         moved
+    }
+
+    /// Resets the configured node to a fresh firmware state (and fresh link
+    /// channels), as a reset or brown-out would, once its time has come.
+    fn restart_if_due(&mut self, now: u64) {
+        let Some((node, at)) = self.config.restart else { return };
+        let i = usize::from(node);
+        if self.restarted || now < at || i >= self.slots.len() {
+            return;
+        }
+        self.restarted = true;
+        if let Some(fresh) = build_nodes(i, 1).pop() {
+            self.slots[i].node = fresh;
+        }
+        if self.slots[i].framed.is_some() {
+            self.slots[i].framed = Some(Box::new(SimFramed::new(channel_timeout(&self.config))));
+        }
     }
 
     /// Framed mode: moves this round's frames onto the peers' wires, runs the
@@ -492,7 +546,12 @@ impl Board {
         }
         to_host.sort_by_key(|(at, node, _)| (*at, *node));
         for (at, node, bytes) in to_host {
+            // Progress is a message delivered to the host, not a frame resent.
+            let last = &mut self.last_to_host;
             self.host_channels[node].receive(&bytes, |m| {
+                if progresses(&m) {
+                    *last = (*last).max(at);
+                }
                 host.receive(node as u16, at, m);
                 true
             });
@@ -521,6 +580,12 @@ impl Board {
         }
         moved
     }
+}
+
+/// Whether a message to the host shows the frame moving (periodic load
+/// reports do not: they keep coming from a stuck array).
+fn progresses(msg: &Message) -> bool {
+    !matches!(msg, Message::Load(_))
 }
 
 /// Resend time-out of the reliable channels: a few round trips of the slowest link.
