@@ -177,18 +177,23 @@ impl Slot {
             };
             let work = self.node.poll(self.clock, &mut links);
             self.miswired = self.miswired.or(links.miswired);
-            if work.is_busy() {
-                worked = true;
-                self.clock += config.cost.charge(&work);
-                continue;
-            }
-            // Idle: wait for the next arrival in this round, else to the round's end.
-            self.clock = match self.next_arrival() {
-                Some(at) if at > self.clock && at < end => at,
-                _ => end,
-            };
+            worked |= self.advance(&work, end, config);
         }
         worked
+    }
+
+    /// Moves the clock past a poll: by the work's cost, or, idle, to the next
+    /// arrival in this round or the round's end. Returns whether work was done.
+    fn advance(&mut self, work: &node_fw::Work, end: u64, config: &SimConfig) -> bool {
+        if work.is_busy() {
+            self.clock += config.cost.charge(work);
+            return true;
+        }
+        self.clock = match self.next_arrival() {
+            Some(at) if at > self.clock && at < end => at,
+            _ => end,
+        };
+        false
     }
 }
 
@@ -220,15 +225,7 @@ impl Slot {
                 write_frame(&mut ports[p], &mut rng[p], &faults, model, clock, bytes)
             });
             self.miswired = self.miswired.or(miswired);
-            if work.is_busy() {
-                worked = true;
-                self.clock += config.cost.charge(&work);
-                continue;
-            }
-            self.clock = match self.next_arrival() {
-                Some(at) if at > self.clock && at < end => at,
-                _ => end,
-            };
+            worked |= self.advance(&work, end, config);
         }
         worked
     }
