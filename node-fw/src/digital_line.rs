@@ -4,9 +4,11 @@
 //! terms. This is the exact equivalent with integer additions only: let `N_i` be
 //! the raw distance along axis `i` from the origin to the next cube boundary in
 //! the direction of travel, so the boundary is crossed at `t_i = N_i / |D_i|`.
-//! Axis `i` is crossed before axis `j` iff `N_i |D_j| < N_j |D_i|`; the six
-//! cross products are kept, and a step along axis `i` adds `ONE |D_j|` to the two
-//! products of `N_i`. No division, no rounding, no drift over any length.
+//! Axis `i` is crossed before axis `j` iff `N_i |D_j| < N_j |D_i|`. The walk
+//! keeps the three differences `e_ij = N_i |D_j| - N_j |D_i|` (i < j); a step
+//! along axis `i` adds `ONE |D_j|` to `e_ij` or subtracts `ONE |D_j|` from
+//! `e_ji`, so a step is two additions and two sign tests. No division, no
+//! rounding, no drift over any length.
 //!
 //! **Tie rule.** When boundaries are crossed at the same `t` (the ray passes
 //! through a cube edge or corner), the lowest axis (x, then y, then z) steps
@@ -37,8 +39,11 @@ pub struct DigitalLine {
     abs_d: [i64; 3],
     /// `N_i`, raw Q16.16 (meaningless for an axis that does not move).
     n: [i64; 3],
-    /// `cross[i][j] = N_i |D_j|`.
-    cross: [[i64; 3]; 3],
+    /// `ONE |D_i|`: what a step along another axis adds to a difference.
+    inc: [i64; 3],
+    /// `e01, e02, e12` with `e_ij = N_i |D_j| - N_j |D_i|`; a pair with an
+    /// axis that does not move holds a constant that orders it last.
+    e: [i64; 3],
     /// Axis whose boundary comes first (tie: lowest axis).
     next: usize,
 }
@@ -89,7 +94,7 @@ impl DigitalLine {
         let o = line.origin();
         let d = line.dir();
         let mut walk =
-            DigitalLine { cell, step: [0; 3], abs_d: [0; 3], n: [0; 3], cross: [[0; 3]; 3], next: 0 };
+            DigitalLine { cell, step: [0; 3], abs_d: [0; 3], n: [0; 3], inc: [0; 3], e: [0; 3], next: 0 };
         let mut entry = Ratio { num: 0, den: 1 };
         for axis in 0..3 {
             let (oi, di, ci) =
@@ -114,15 +119,12 @@ impl DigitalLine {
             set(&mut walk.abs_d, axis, di.abs());
             set(&mut walk.n, axis, n);
         }
-        for i in 0..3 {
-            for j in 0..3 {
-                let v = get(&walk.n, i) * get(&walk.abs_d, j);
-                if let Some(row) = walk.cross.get_mut(i) {
-                    set(row, j, v);
-                }
-            }
+        if walk.abs_d == [0; 3] {
+            return Err(Error::OutOfRange(Field::Direction));
         }
-        walk.next = walk.first_axis().ok_or(Error::OutOfRange(Field::Direction))?;
+        walk.inc = walk.abs_d.map(|d| ONE * d);
+        walk.e = [(0, 1), (0, 2), (1, 2)].map(|(i, j)| walk.difference(i, j));
+        walk.next = walk.first_axis();
         // The cube must be entered no later than it is left.
         let exit = Ratio { num: get(&walk.n, walk.next), den: get(&walk.abs_d, walk.next) };
         if exit.lt(entry) {
@@ -132,6 +134,7 @@ impl DigitalLine {
     }
 
     /// The current unit cube.
+    #[inline]
     pub fn cell(&self) -> [i32; 3] {
         self.cell
     }
@@ -144,19 +147,29 @@ impl DigitalLine {
     /// Moves to the next cube; returns the axis stepped along.
     pub fn step(&mut self) -> usize {
         let axis = self.next;
+        let [e01, e02, e12] = &mut self.e;
+        let [i0, i1, i2] = self.inc;
+        match axis {
+            0 => {
+                *e01 += i1;
+                *e02 += i2;
+            }
+            1 => {
+                *e01 -= i0;
+                *e12 += i2;
+            }
+            _ => {
+                *e02 -= i0;
+                *e12 -= i1;
+            }
+        }
         if let (Some(c), Some(s), Some(n)) =
             (self.cell.get_mut(axis), self.step.get(axis), self.n.get_mut(axis))
         {
             *c += *s;
             *n += ONE;
         }
-        for j in 0..3 {
-            let inc = ONE * get(&self.abs_d, j);
-            if let Some(v) = self.cross.get_mut(axis).and_then(|row| row.get_mut(j)) {
-                *v += inc;
-            }
-        }
-        self.next = self.first_axis().unwrap_or(axis);
+        self.next = self.first_axis();
         axis
     }
 
@@ -167,23 +180,25 @@ impl DigitalLine {
         i64::from(t.to_bits()) * get(&self.abs_d, a) <= get(&self.n, a) << DIR_FRAC
     }
 
-    /// Lowest axis among those whose boundary is crossed first.
-    fn first_axis(&self) -> Option<usize> {
-        let mut best: Option<usize> = None;
-        for k in 0..3 {
-            if get(&self.abs_d, k) == 0 {
-                continue;
-            }
-            best = match best {
-                Some(b) if self.cross_of(k, b) >= self.cross_of(b, k) => Some(b),
-                _ => Some(k),
-            };
+    /// Lowest axis among those whose boundary is crossed first: axis `i` goes
+    /// no later than `j > i` iff `e_ij <= 0`.
+    fn first_axis(&self) -> usize {
+        let [e01, e02, e12] = self.e;
+        match (e01 <= 0, e02 <= 0, e12 <= 0) {
+            (true, true, _) => 0,
+            (true, false, _) | (false, _, false) => 2,
+            (false, _, true) => 1,
         }
-        best
     }
 
-    fn cross_of(&self, i: usize, j: usize) -> i64 {
-        self.cross.get(i).map_or(0, |row| get(row, j))
+    /// `e_ij` (i < j) for the current `N`; a moving axis always goes before
+    /// one that does not move (whose pairs never change, as its `ONE |D|` is 0).
+    fn difference(&self, i: usize, j: usize) -> i64 {
+        match (get(&self.abs_d, i) != 0, get(&self.abs_d, j) != 0) {
+            (true, true) => get(&self.n, i) * get(&self.abs_d, j) - get(&self.n, j) * get(&self.abs_d, i),
+            (true, false) => i64::MIN,
+            _ => i64::MAX,
+        }
     }
 }
 

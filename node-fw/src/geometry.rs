@@ -32,6 +32,7 @@ impl Grid {
     }
 
     /// Whether `cell` is a cube of the grid.
+    #[inline]
     pub fn contains(&self, cell: [i32; 3]) -> bool {
         cell.iter().zip(self.size).all(|(&c, s)| c >= 0 && c < i32::from(s))
     }
