@@ -417,6 +417,9 @@ pub enum ErrorCode {
     PoolCapacity,
     /// A ray's class exceeded the bound the pool was sized for (`a` = class).
     ClassOverflow,
+    /// The node needs a neighbour link its board has no UART for (`a` = port
+    /// index, `b` = neighbour UARTs on the board).
+    PortCapacity,
 }
 
 /// A node's error, sent to the host. Firmware never panics on input.

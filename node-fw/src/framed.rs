@@ -22,8 +22,18 @@ pub struct FramedLinks<const W: usize, const Q: usize> {
 
 impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
     /// Channels that resend after `timeout` ticks without progress.
-    pub fn new(timeout: u64) -> Self {
-        Self { channels: core::array::from_fn(|_| Channel::new(timeout)), inbox: [const { Deque::new() }; 7] }
+    pub const fn new(timeout: u64) -> Self {
+        let t = timeout;
+        let channels = [
+            Channel::new(t),
+            Channel::new(t),
+            Channel::new(t),
+            Channel::new(t),
+            Channel::new(t),
+            Channel::new(t),
+            Channel::new(t),
+        ];
+        Self { channels, inbox: [const { Deque::new() }; 7] }
     }
 
     /// Feeds bytes that arrived on `port`.
@@ -32,6 +42,13 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
         if let (Some(channel), Some(inbox)) = (self.channels.get_mut(i), self.inbox.get_mut(i)) {
             channel.receive(bytes, |m| inbox.push_back(m).is_ok());
         }
+    }
+
+    /// Whether `port` can take another received message. A byte stream that
+    /// can wait (a UART whose sender is flow-controlled) should stop feeding
+    /// the port until this is true again, so no frame is dropped for room.
+    pub fn can_ingest(&self, port: Port) -> bool {
+        self.inbox.get(port.index()).is_some_and(|q| !q.is_full())
     }
 
     /// Writes what is due on every port at `now`; `write` returns false when a
@@ -45,6 +62,18 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
     /// Whether frames await acknowledgement or control frames are due.
     pub fn busy(&self) -> bool {
         self.channels.iter().any(Channel::busy) || self.inbox.iter().any(|q| !q.is_empty())
+    }
+
+    /// The longest any peer has left our data unacknowledged, and on which port.
+    pub fn unanswered_for(&self, now: u64) -> (u64, Port) {
+        let mut worst = (0, Port::Host);
+        for (channel, port) in self.channels.iter().zip(Port::ALL) {
+            let t = channel.unanswered_for(now);
+            if t > worst.0 {
+                worst = (t, port);
+            }
+        }
+        worst
     }
 
     /// Counters summed over the seven channels.

@@ -173,6 +173,11 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.id
     }
 
+    /// The assignment taken from the host, once one arrived.
+    pub fn assignment(&self) -> Option<Assign> {
+        self.assign
+    }
+
     /// The subregion (for inspection and tests).
     pub fn region(&self) -> &Subregion<S, R, C> {
         &self.region
@@ -298,8 +303,15 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         if self.phase != Phase::Loading || a.driving_axis > 2 {
             return self.fail(ErrorCode::Unexpected, 0, 0);
         }
+        let Some(id) = crate::wiring::index_of(a.coord, a.array) else {
+            return self.fail(ErrorCode::Unexpected, 0, 1);
+        };
         match self.region.assign(self.grid, CubeBox { lo: a.lo, hi: a.hi }) {
-            Ok(()) => self.assign = Some(a),
+            Ok(()) => {
+                // A board learns which node it is from its assignment.
+                self.id = id;
+                self.assign = Some(a);
+            }
             Err(e) => self.fail_with(e),
         }
     }

@@ -49,6 +49,9 @@ pub struct Channel<const W: usize> {
     control_due: Option<Message>,
     /// An ack moved the window since the last transmit.
     acked_now: bool,
+    /// Since when the peer has owed an ack: the last ack that moved the
+    /// window, or the first send into an empty window.
+    owed_since: Option<u64>,
     decoder: FrameDecoder,
     timeout: u64,
     /// Counters.
@@ -67,6 +70,7 @@ impl<const W: usize> Channel<W> {
             expected: 0,
             control_due: None,
             acked_now: false,
+            owed_since: None,
             decoder: FrameDecoder::new(),
             timeout,
             stats: ChannelStats { retransmitted: 0, corrupted: 0, discarded: 0 },
@@ -158,9 +162,15 @@ impl<const W: usize> Channel<W> {
                 self.control_due = None;
             }
         }
-        if core::mem::take(&mut self.acked_now) || self.unacked.is_empty() {
+        let acked = core::mem::take(&mut self.acked_now);
+        if acked || self.unacked.is_empty() {
             self.progress_at = now;
         }
+        self.owed_since = match (self.unacked.is_empty(), self.owed_since) {
+            (true, _) => None,
+            (false, Some(since)) if !acked => Some(since),
+            (false, _) => Some(now),
+        };
         if !self.unacked.is_empty() && now.saturating_sub(self.progress_at) >= self.timeout {
             // No progress for a whole time-out: go back to the oldest frame.
             self.resend_from = 0;
@@ -177,6 +187,12 @@ impl<const W: usize> Channel<W> {
             self.resend_from += 1;
             self.written = self.written.max(self.resend_from);
         }
+    }
+
+    /// How long the peer has left data frames unacknowledged at `now` (zero
+    /// when nothing is owed): a peer that stops answering shows here.
+    pub fn unanswered_for(&self, now: u64) -> u64 {
+        self.owed_since.map_or(0, |since| now.saturating_sub(since))
     }
 
     /// Whether data frames await acknowledgement.
