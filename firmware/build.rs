@@ -1,0 +1,18 @@
+//! Puts the board's memory map where cortex-m-rt's link.x finds it.
+use std::{env, fs, path::PathBuf};
+
+fn main() {
+    let board = if env::var_os("CARGO_FEATURE_MPS2_AN385").is_some() {
+        "mps2-an385"
+    } else if env::var_os("CARGO_FEATURE_STM32F413").is_some() {
+        "stm32f413"
+    } else {
+        panic!("choose a board: --features mps2-an385 or --features stm32f413");
+    };
+    let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
+    let map = format!("memory/{board}.x");
+    fs::copy(&map, out.join("memory.x")).expect("memory map of the board");
+    println!("cargo:rustc-link-search={}", out.display());
+    println!("cargo:rerun-if-changed={map}");
+    println!("cargo:rerun-if-changed=build.rs");
+}

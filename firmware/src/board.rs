@@ -1,0 +1,14 @@
+//! Boards: UART drivers and clocks, one module per board.
+
+pub mod mmio;
+pub mod wake;
+
+#[cfg(feature = "mps2-an385")]
+pub mod mps2_an385;
+#[cfg(feature = "mps2-an385")]
+pub use mps2_an385 as active;
+
+#[cfg(feature = "stm32f413")]
+pub mod stm32f413;
+#[cfg(all(feature = "stm32f413", not(feature = "mps2-an385")))]
+pub use stm32f413 as active;

@@ -1,0 +1,71 @@
+//! The firmware's main loop: the same sans-IO node as in the simulator,
+//! polled with the board's clock over its UARTs.
+
+use embedded_io::{Read, ReadReady, Write, WriteReady};
+use link_proto::{ErrorCode, ErrorReport, Message};
+use node_fw::Links;
+use node_fw::Port;
+use node_fw::wiring::index_of;
+
+use crate::capacity::{BoardLinks, BoardNode};
+use crate::clock::Clock;
+use crate::wires::Wires;
+
+/// Cycles without an acknowledgement after which a channel resends.
+pub const RESEND_AFTER: u64 = 20_000_000;
+
+/// How the loop waits when there is nothing to do.
+#[derive(Debug, Clone, Copy)]
+pub struct Idle {
+    /// Forgets pended wake-ups (called before each poll).
+    pub clear: fn(),
+    /// Waits until something pends.
+    pub sleep: fn(),
+}
+
+/// Runs the node for ever, sleeping whenever a pass finds nothing to do.
+pub fn run<U, const N: usize>(
+    node: &mut BoardNode,
+    links: &mut BoardLinks,
+    wires: &mut Wires<U, N>,
+    clock: &mut impl Clock,
+    idle: Idle,
+) -> !
+where
+    U: Read + Write + ReadReady + WriteReady,
+{
+    loop {
+        (idle.clear)();
+        if !step(node, links, wires, clock.now()) {
+            // Nothing arrived, nothing was sent, the node did no work: only
+            // a byte or the wake-up timer can change that.
+            (idle.sleep)();
+        }
+    }
+}
+
+/// One pass: bytes in, one node poll, bytes out. Returns whether anything
+/// happened.
+pub fn step<U, const N: usize>(
+    node: &mut BoardNode,
+    links: &mut BoardLinks,
+    wires: &mut Wires<U, N>,
+    now: u64,
+) -> bool
+where
+    U: Read + Write + ReadReady + WriteReady,
+{
+    let read = wires.receive(links);
+    let work = node.poll(now, links);
+    if let Some(a) = node.assignment()
+        && let Err(port) = wires.wire(a.coord, a.array)
+    {
+        // The host asked for an array this board cannot be cabled into.
+        let node_id = index_of(a.coord, a.array).unwrap_or(u16::MAX);
+        let report =
+            ErrorReport { node: node_id, code: ErrorCode::PortCapacity, a: port as u32, b: N as u32 };
+        let _ = links.try_send(Port::Host, Message::Error(report));
+    }
+    let written = wires.transmit(now, links);
+    read > 0 || written > 0 || work.is_busy() || wires.sending()
+}
