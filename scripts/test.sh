@@ -1,23 +1,44 @@
 #!/usr/bin/env bash
-# Runs every test of the project: formatting, lints, the firmware's thumb build,
-# the no-std dependency check, and the whole workspace's tests.
-# Installs what it needs (the thumbv7m target through rustup) or says how.
+# Runs every test of the project: formatting, lints, the firmware's thumb builds
+# and sizes, the no-std dependency check, the kernels' instruction counts on the
+# emulated Cortex-M3, and the whole workspace's tests (among them a 2x2x2 array
+# of QEMU boards). Installs what it needs (thumb targets and llvm-tools through
+# rustup, qemu-system-arm through apt-get) or says how.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 step() { printf '\n== %s\n' "$*"; }
 
 THUMB=thumbv7m-none-eabi
-if ! rustup target list --installed 2>/dev/null | grep -qx "$THUMB"; then
-    step "installing the $THUMB target"
-    rustup target add "$THUMB" || {
-        echo "error: the $THUMB target is missing and could not be installed; run: rustup target add $THUMB" >&2
+for target in "$THUMB" thumbv7em-none-eabihf; do
+    if ! rustup target list --installed 2>/dev/null | grep -qx "$target"; then
+        step "installing the $target target"
+        rustup target add "$target" || {
+            echo "error: the $target target is missing and could not be installed; run: rustup target add $target" >&2
+            exit 1
+        }
+    fi
+done
+if ! rustup component list --installed 2>/dev/null | grep -q '^llvm-tools'; then
+    step "installing llvm-tools (firmware sizes)"
+    rustup component add llvm-tools || {
+        echo "error: llvm-tools is missing and could not be installed; run: rustup component add llvm-tools" >&2
+        exit 1
+    }
+fi
+if ! command -v qemu-system-arm >/dev/null; then
+    step "installing qemu-system-arm (emulated boards)"
+    SUDO=""
+    [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+    { $SUDO apt-get update -qq && $SUDO apt-get install -y -qq qemu-system-arm >/dev/null; } || {
+        echo "error: qemu-system-arm is missing and could not be installed; run: apt-get install qemu-system-arm" >&2
         exit 1
     }
 fi
 
 step "format"
 cargo fmt --all -- --check
+cargo fmt --manifest-path firmware/Cargo.toml -- --check
 
 step "lints (host, all targets)"
 cargo clippy --workspace --all-targets --locked -- -D warnings
@@ -25,6 +46,12 @@ cargo clippy --workspace --all-targets --locked -- -D warnings
 step "lints and build of the no_std crates for $THUMB"
 cargo clippy -p node-fw -p link-proto --target "$THUMB" --locked -- -D warnings
 cargo build -p node-fw --target "$THUMB" --release --locked
+(cd firmware && cargo clippy --release --locked --bins -- -D warnings)
+(cd firmware && cargo clippy --release --locked --bin node --no-default-features --features stm32f413 \
+    --target thumbv7em-none-eabihf -- -D warnings)
+
+step "node firmware: builds, sizes against the budget, kernel instruction counts on QEMU"
+scripts/firmware.sh
 
 step "node-fw's dependencies on $THUMB are all no_std"
 scripts/check-no-std.sh "$THUMB"

@@ -51,7 +51,27 @@ impl HostError {
         }
     }
 
-    fn message(&self) -> &str {
+    /// The same kind of error, its message prefixed with `context: `.
+    pub fn context(self, context: &str) -> HostError {
+        let wrap = |m: String| format!("{context}: {m}");
+        match self {
+            HostError::Malformed(m) => HostError::Malformed(wrap(m)),
+            HostError::NonFinite(m) => HostError::NonFinite(wrap(m)),
+            HostError::Radius(m) => HostError::Radius(wrap(m)),
+            HostError::OutsideGrid(m) => HostError::OutsideGrid(wrap(m)),
+            HostError::ZeroSize(m) => HostError::ZeroSize(wrap(m)),
+            HostError::ArrayTooLarge(m) => HostError::ArrayTooLarge(wrap(m)),
+            HostError::Capacity(m) => HostError::Capacity(wrap(m)),
+            HostError::Input(m) => HostError::Input(wrap(m)),
+            HostError::Io(m) => HostError::Io(wrap(m)),
+            HostError::Serial(m) => HostError::Serial(wrap(m)),
+            HostError::Node(m) => HostError::Node(wrap(m)),
+            HostError::Version(m) => HostError::Version(wrap(m)),
+        }
+    }
+
+    /// The one-line message.
+    pub fn message(&self) -> &str {
         match self {
             HostError::Malformed(m)
             | HostError::NonFinite(m)

@@ -3,6 +3,7 @@
 //! pixel contributions into images, and drives runs on the in-memory board.
 //! An independent f64 renderer ([`reference`]) checks the fixed-point image.
 
+pub mod backend;
 pub mod camera;
 pub mod compare;
 pub mod direct;
@@ -14,8 +15,10 @@ pub mod output;
 pub mod paper;
 pub mod partition;
 pub mod plot;
+pub mod qemu;
 pub mod reference;
 pub mod render;
 pub mod scene;
+pub mod serial;
 
 pub use error::HostError;

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use host_tool::backend::Backend;
 use host_tool::compare::compare;
 use host_tool::error::{HostError, input};
 use host_tool::output::{png, write_atomic};
@@ -26,8 +27,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render on an in-memory array of nodes; write the image, per-node loads and a summary.
-    Render(RenderArgs),
+    /// Render on an array of nodes (in memory, emulated or real); write the image, per-node loads and a summary.
+    Render(Box<RenderArgs>),
     /// Render the same scene with the independent f64 reference renderer.
     Reference(ReferenceArgs),
     /// Render with the fixed-point kernels and the f64 reference; print the comparison as JSON.
@@ -152,10 +153,32 @@ enum AxisChoice {
     Z,
 }
 
+#[derive(Clone, Copy, ValueEnum)]
+enum BackendChoice {
+    /// The in-memory board (deterministic virtual time).
+    Sim,
+    /// One QEMU mps2-an385 per node running the node firmware.
+    Qemu,
+    /// Real boards on the serial devices given by --ports.
+    Serial,
+}
+
 #[derive(Args)]
 struct RenderArgs {
     #[command(flatten)]
     scene: SceneArgs,
+    /// What runs the nodes.
+    #[arg(long, value_enum, default_value = "sim")]
+    backend: BackendChoice,
+    /// Serial devices of the nodes in node order (x fastest), comma-separated (--backend serial).
+    #[arg(long, value_name = "DEV,DEV,...", value_delimiter = ',')]
+    ports: Vec<String>,
+    /// Node firmware ELF for --backend qemu.
+    #[arg(long, value_name = "ELF", default_value = host_tool::backend::DEFAULT_FIRMWARE)]
+    firmware: PathBuf,
+    /// Seconds a node may leave the host unanswered before the run fails (qemu, serial).
+    #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
+    node_timeout: f64,
     /// Load balancing.
     #[arg(long, value_enum, default_value = "slide")]
     balance: BalanceMode,
@@ -219,7 +242,7 @@ struct ReferenceArgs {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Render(args) => render(args),
+        Command::Render(args) => render(*args),
         Command::Reference(args) => reference_cmd(args),
         Command::Compare(args) => compare_cmd(args),
         Command::Bench(BenchCommand::Board(args)) => bench_board(args),
@@ -298,7 +321,27 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         let threshold = (args.threshold * 65536.0).round() as u32;
         opts.balance = Some(Balance { interval: args.interval, threshold, step: 1, policy });
     }
-    let result = render_sim(&scene, &opts)?;
+    let backend = match args.backend {
+        BackendChoice::Sim => Backend::Sim,
+        BackendChoice::Qemu => Backend::Qemu { firmware: args.firmware.clone() },
+        BackendChoice::Serial => Backend::Serial { ports: args.ports.clone() },
+    };
+    if backend != Backend::Sim && (args.faults.is_some() || args.restart_node.is_some()) {
+        return Err(input(
+            "--faults and --restart-node inject faults into the in-memory board (--backend sim)",
+        ));
+    }
+    if !matches!(backend, Backend::Serial { .. }) && !args.ports.is_empty() {
+        return Err(input("--ports is for --backend serial"));
+    }
+    if !(args.node_timeout.is_finite() && args.node_timeout > 0.0 && args.node_timeout < 1e6) {
+        return Err(input(format!(
+            "--node-timeout must be a positive number of seconds, got {}",
+            args.node_timeout
+        )));
+    }
+    let timeout = std::time::Duration::from_secs_f64(args.node_timeout);
+    let result = host_tool::backend::render(&scene, &opts, &backend, timeout)?;
     let f = &result.frame;
     let image = png(f.width, f.height, &f.rgb8())?;
     let summary = summary_json(&scene, &opts, &result);

@@ -1,10 +1,15 @@
-//! Driving a frame on the in-memory board: broadcast, render, collect, finish.
+//! Driving a frame on an array: broadcast, render, collect, finish.
+//!
+//! The conversation with the nodes is the same whatever carries it: the
+//! in-memory board, emulated boards under QEMU, or real boards over serial
+//! devices ([`Array`]).
 
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
-use link_proto::{Balance, InitialRays, Message, RenderStart, SceneEnd};
+use link_proto::{Balance, Capacity, InitialRays, Message, RenderStart, SceneEnd};
 use node_fw::pool::class_bound;
+use node_fw::reliable::ChannelStats;
 use sim_board::{Board, HostEndpoint, RunStats, SimConfig, SimNode};
 
 use crate::camera::PixelBasis;
@@ -68,15 +73,88 @@ pub struct RenderResult {
     pub links: node_fw::reliable::ChannelStats,
 }
 
-/// Renders `scene` on the in-memory board with the even partition.
-pub fn render_sim(scene: &Scene, opts: &RenderOptions) -> Result<RenderResult, HostError> {
+/// Nodes that render a frame, and what carries their messages.
+pub trait Array {
+    /// Number of nodes.
+    fn nodes(&self) -> usize;
+    /// What every node can hold.
+    fn capacity(&self) -> Capacity;
+    /// Queues a message from the host to node `node`.
+    fn send(&mut self, node: usize, msg: Message);
+    /// Moves messages until `host` is finished.
+    fn run<H: HostEndpoint>(&mut self, host: &mut H) -> Result<RunStats, HostError>;
+    /// Bytes node `node` sent, per port (as far as the transport counts them).
+    fn bytes_sent(&self, node: usize) -> [u64; 7];
+    /// Resends and damaged frames on the links.
+    fn link_stats(&self) -> ChannelStats;
+}
+
+impl Array for Board {
+    fn nodes(&self) -> usize {
+        self.len()
+    }
+
+    fn capacity(&self) -> Capacity {
+        SimNode::capacity()
+    }
+
+    fn send(&mut self, node: usize, msg: Message) {
+        Board::send(self, node, msg);
+    }
+
+    fn run<H: HostEndpoint>(&mut self, host: &mut H) -> Result<RunStats, HostError> {
+        Board::run(self, host).map_err(|e| HostError::Node(e.to_string()))
+    }
+
+    fn bytes_sent(&self, node: usize) -> [u64; 7] {
+        Board::bytes_sent(self, node)
+    }
+
+    fn link_stats(&self) -> ChannelStats {
+        Board::link_stats(self)
+    }
+}
+
+impl Array for crate::serial::SerialArray {
+    fn nodes(&self) -> usize {
+        self.len()
+    }
+
+    fn capacity(&self) -> Capacity {
+        crate::serial::SerialArray::capacity(self)
+    }
+
+    fn send(&mut self, node: usize, msg: Message) {
+        crate::serial::SerialArray::send(self, node, msg);
+    }
+
+    fn run<H: HostEndpoint>(&mut self, host: &mut H) -> Result<RunStats, HostError> {
+        crate::serial::SerialArray::run(self, host)
+    }
+
+    fn bytes_sent(&self, node: usize) -> [u64; 7] {
+        // The host sees only its own link to each node.
+        [0, 0, 0, 0, 0, 0, crate::serial::SerialArray::bytes_sent(self, node)]
+    }
+
+    fn link_stats(&self) -> ChannelStats {
+        crate::serial::SerialArray::link_stats(self)
+    }
+}
+
+/// The even partition of `scene` over `opts.array` along the chosen driving axis.
+pub fn even_partition(scene: &Scene, opts: &RenderOptions) -> Result<Partition, HostError> {
     let axis = match opts.driving_axis {
         Some(a) if a > 2 => return Err(input(format!("driving axis {a} must be 0, 1 or 2"))),
         Some(a) => a,
         None => crate::partition::driving_axis(scene, opts.array)?,
     };
-    let partition = Partition::even(scene.grid, opts.array, axis)?;
-    render_partitioned(scene, opts, partition)
+    Partition::even(scene.grid, opts.array, axis)
+}
+
+/// Renders `scene` on the in-memory board with the even partition.
+pub fn render_sim(scene: &Scene, opts: &RenderOptions) -> Result<RenderResult, HostError> {
+    render_partitioned(scene, opts, even_partition(scene, opts)?)
 }
 
 /// Renders `scene` on the in-memory board with a given partition.
@@ -85,48 +163,70 @@ pub fn render_partitioned(
     opts: &RenderOptions,
     partition: Partition,
 ) -> Result<RenderResult, HostError> {
+    check_frame(scene, opts, &partition, SimNode::capacity())?;
+    let mut board = Board::new(SimConfig { array: opts.array, ..opts.sim });
+    render_on(&mut board, scene, opts, partition)
+}
+
+/// Checks the image size, each node's share of the scene and the pool
+/// depth against `capacity` before anything is sent.
+pub fn check_frame(
+    scene: &Scene,
+    opts: &RenderOptions,
+    partition: &Partition,
+    capacity: Capacity,
+) -> Result<(), HostError> {
     let [w, h] = opts.size;
     if w == 0 || h == 0 {
         return Err(HostError::ZeroSize(format!("image size {w}x{h} must be at least 1x1")));
     }
-    let axis = partition.driving_axis;
-    partition.check_capacity(scene, SimNode::capacity())?;
+    partition.check_capacity(scene, capacity)?;
     let sliding = opts.balance.is_some() || partition.row_cuts.is_some();
-    let top = class_bound(opts.array, scene.max_depth, sliding.then_some(usize::from(axis)));
+    let top =
+        class_bound(opts.array, scene.max_depth, sliding.then_some(usize::from(partition.driving_axis)));
     let needed = (top + 1) * u32::from(opts.level_depth);
-    if opts.level_depth == 0 || needed > u32::from(SimNode::capacity().rays) {
+    if opts.level_depth == 0 || needed > u32::from(capacity.rays) {
         return Err(HostError::Capacity(format!(
             "queue depth {} needs {needed} ray slots per node for this array and max_depth; a node has {}",
-            opts.level_depth,
-            SimNode::capacity().rays
+            opts.level_depth, capacity.rays
         )));
     }
+    Ok(())
+}
+
+/// Renders one frame on `array` (already checked with [`check_frame`]).
+pub fn render_on(
+    array: &mut impl Array,
+    scene: &Scene,
+    opts: &RenderOptions,
+    partition: Partition,
+) -> Result<RenderResult, HostError> {
+    let [w, h] = opts.size;
     let started = Instant::now();
-    let mut board = Board::new(SimConfig { array: opts.array, ..opts.sim });
-    let mut frame = FrameBuffer::new(w, h, board.len(), PIXEL_CREDIT);
-    broadcast(&mut board, scene, &partition, opts);
+    let mut frame = FrameBuffer::new(w, h, array.nodes(), PIXEL_CREDIT);
+    broadcast(array, scene, &partition, opts);
 
     let mut tracked = Tracked { frame: &mut frame, started, bar: None };
-    let run = board.run(&mut tracked);
+    let run = array.run(&mut tracked);
     if let Some(bar) = tracked.bar.take() {
         bar.finish_and_clear();
     }
     // A node's own report (or restart) explains a failed run better than the stall it causes.
     node_errors(&frame, &partition)?;
-    let stats = run.map_err(|e| HostError::Node(format!("render failed: {e}")))?;
+    let stats = run.map_err(|e| e.context("render failed"))?;
 
     frame.finishing = true;
-    for id in 0..board.len() {
-        board.send(id, Message::Finish(link_proto::Finish { frame: 0 }));
+    for id in 0..array.nodes() {
+        array.send(id, Message::Finish(link_proto::Finish { frame: 0 }));
     }
-    board.run(&mut frame).map_err(|e| HostError::Node(format!("collecting loads failed: {e}")))?;
+    array.run(&mut frame).map_err(|e| e.context("collecting loads failed"))?;
     node_errors(&frame, &partition)?;
-    let bytes = (0..board.len()).map(|i| board.bytes_sent(i)).collect();
-    Ok(RenderResult { frame, partition, stats, bytes, wall: started.elapsed(), links: board.link_stats() })
+    let bytes = (0..array.nodes()).map(|i| array.bytes_sent(i)).collect();
+    Ok(RenderResult { frame, partition, stats, bytes, wall: started.elapsed(), links: array.link_stats() })
 }
 
 /// Sends the scene, assignments and render start to every node.
-fn broadcast(board: &mut Board, scene: &Scene, partition: &Partition, opts: &RenderOptions) {
+fn broadcast(board: &mut impl Array, scene: &Scene, partition: &Partition, opts: &RenderOptions) {
     let [w, h] = opts.size;
     let camera = PixelBasis::new(&scene.camera(), w, h).msg();
     let tiles = match opts.initial {

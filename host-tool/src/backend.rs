@@ -1,0 +1,80 @@
+//! Where a render runs: the in-memory board, emulated boards, or real boards.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use crate::error::{HostError, input};
+use crate::qemu::QemuArray;
+use crate::render::{RenderOptions, RenderResult, check_frame, even_partition, render_on, render_sim};
+use crate::scene::Scene;
+use crate::serial::SerialArray;
+
+/// The firmware the QEMU backend runs unless told otherwise.
+pub const DEFAULT_FIRMWARE: &str = "target/thumbv7m-none-eabi/release/node";
+
+/// What carries the frame.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Backend {
+    /// The in-memory board (deterministic virtual time).
+    Sim,
+    /// One QEMU mps2-an385 per node running this firmware ELF.
+    Qemu {
+        /// The node firmware.
+        firmware: PathBuf,
+    },
+    /// Real boards, node `i` on serial device `i`.
+    Serial {
+        /// Serial devices in node order.
+        ports: Vec<String>,
+    },
+}
+
+/// Renders `scene` on `backend`; a node silent for `node_timeout` ends the
+/// run with an error naming it.
+pub fn render(
+    scene: &Scene,
+    opts: &RenderOptions,
+    backend: &Backend,
+    node_timeout: Duration,
+) -> Result<RenderResult, HostError> {
+    let nodes: usize = opts.array.iter().map(|&n| usize::from(n)).product();
+    match backend {
+        Backend::Sim => render_sim(scene, opts),
+        Backend::Qemu { firmware } => {
+            // Check the scene before starting eight emulators.
+            even_partition(scene, opts)?;
+            let qemu = QemuArray::launch(opts.array, firmware)?;
+            let result = render_serial(scene, opts, &qemu.ptys, node_timeout);
+            drop(qemu);
+            result
+        }
+        Backend::Serial { ports } if ports.len() != nodes => Err(input(format!(
+            "--ports lists {} devices; the {}x{}x{} array has {nodes} nodes",
+            ports.len(),
+            opts.array[0],
+            opts.array[1],
+            opts.array[2]
+        ))),
+        Backend::Serial { ports } => render_serial(scene, opts, ports, node_timeout),
+    }
+}
+
+/// Renders `scene` on boards behind serial devices `ports` (node order).
+pub fn render_serial(
+    scene: &Scene,
+    opts: &RenderOptions,
+    ports: &[String],
+    node_timeout: Duration,
+) -> Result<RenderResult, HostError> {
+    let partition = even_partition(scene, opts)?;
+    let names = (0..partition.len())
+        .map(|i| {
+            let c = partition.coord(i);
+            format!("node {i} ({},{},{})", c[0], c[1], c[2])
+        })
+        .collect();
+    let mut array = SerialArray::open(ports, names, node_timeout)?;
+    array.connect()?;
+    check_frame(scene, opts, &partition, array.capacity())?;
+    render_on(&mut array, scene, opts, partition)
+}

@@ -1,0 +1,309 @@
+//! Boards over serial links: one serial device per node (a pty of an emulated
+//! board, or a USB-serial adapter of a real one).
+//!
+//! Each device carries CRC-checked frames through the same go-back-N channel
+//! the nodes run ([`node_fw::reliable::Channel`]), so a lost or damaged byte
+//! costs a resend, never a message. Every node must say hello first (its
+//! protocol version and capacities). While a render runs, the host sends a
+//! hello now and then as a heartbeat: a node that leaves our frames
+//! unacknowledged for the time-out has stopped answering, and the run ends
+//! naming it instead of hanging.
+
+use std::collections::VecDeque;
+use std::io::{ErrorKind, Read, Write};
+use std::time::{Duration, Instant};
+
+use link_proto::{Capacity, Hello, Message, PROTOCOL_VERSION};
+use node_fw::reliable::{Channel, ChannelStats};
+use serialport::SerialPort;
+use sim_board::{HostEndpoint, RunStats};
+
+use crate::error::HostError;
+
+/// Unacknowledged frames per node link on the host's side.
+const WINDOW: usize = 8;
+/// Microseconds without an acknowledgement before the host resends.
+const RESEND_AFTER_US: u64 = 250_000;
+/// Bytes the host queues per device beyond what the device took.
+const TX_QUEUE: usize = 4096;
+/// Heartbeat period while waiting.
+const HEARTBEAT: Duration = Duration::from_millis(500);
+/// Baud rate for real devices (ptys ignore it).
+pub const BAUD: u32 = 115_200;
+
+/// One node's serial link.
+struct Link {
+    name: String,
+    port: Box<dyn SerialPort>,
+    channel: Channel<WINDOW>,
+    /// Messages waiting for room in the channel's window.
+    outbox: VecDeque<Message>,
+    hello: Option<Hello>,
+    bytes_sent: u64,
+    /// Frames written into the device only in part or not yet (never blocks).
+    unsent: VecDeque<u8>,
+}
+
+/// The array as seen through serial devices, node `i` on device `i`.
+pub struct SerialArray {
+    links: Vec<Link>,
+    started: Instant,
+    timeout: Duration,
+    /// Hellos taken while connecting, handed to the first run's host.
+    greeted: Vec<(u16, Message)>,
+    last_heartbeat: Instant,
+    /// Names of the nodes (their coordinates), for errors.
+    names: Vec<String>,
+}
+
+impl SerialArray {
+    /// Opens one device per node; `names` label the nodes in errors.
+    pub fn open(paths: &[String], names: Vec<String>, timeout: Duration) -> Result<Self, HostError> {
+        let links = paths.iter().map(|p| open_link(p)).collect::<Result<Vec<_>, _>>()?;
+        let now = Instant::now();
+        Ok(Self { links, started: now, timeout, greeted: Vec::new(), last_heartbeat: now, names })
+    }
+
+    /// Waits until every node has said hello; checks versions.
+    pub fn connect(&mut self) -> Result<(), HostError> {
+        let hello = Message::Hello(Hello {
+            version: PROTOCOL_VERSION,
+            node: u16::MAX,
+            capacity: Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 },
+        });
+        for i in 0..self.links.len() {
+            self.send(i, hello.clone());
+        }
+        let deadline = Instant::now() + self.timeout;
+        while self.links.iter().any(|l| l.hello.is_none()) {
+            if Instant::now() > deadline {
+                let silent = self.links.iter().position(|l| l.hello.is_none()).unwrap_or(0);
+                return Err(HostError::Node(format!(
+                    "{} on {} did not say hello within {:.0?}",
+                    self.name(silent),
+                    self.links[silent].name,
+                    self.timeout
+                )));
+            }
+            let mut got = Vec::new();
+            self.pump(&mut |node, _, msg| got.push((node, msg)))?;
+            for (node, msg) in got {
+                if let Message::Hello(h) = &msg {
+                    if h.version != PROTOCOL_VERSION {
+                        return Err(HostError::Version(format!(
+                            "{} on {} speaks protocol version {}, the host {PROTOCOL_VERSION}",
+                            self.name(usize::from(node)),
+                            self.links[usize::from(node)].name,
+                            h.version
+                        )));
+                    }
+                    self.links[usize::from(node)].hello = Some(*h);
+                }
+                self.greeted.push((node, msg));
+            }
+        }
+        Ok(())
+    }
+
+    /// The smallest capacity over the nodes.
+    pub fn capacity(&self) -> Capacity {
+        let caps = self.links.iter().filter_map(|l| l.hello.map(|h| h.capacity));
+        caps.reduce(|a, b| Capacity {
+            spheres: a.spheres.min(b.spheres),
+            refs: a.refs.min(b.refs),
+            cubes: a.cubes.min(b.cubes),
+            rays: a.rays.min(b.rays),
+        })
+        .unwrap_or(Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 })
+    }
+
+    /// Number of nodes.
+    pub fn len(&self) -> usize {
+        self.links.len()
+    }
+
+    /// Whether there are no nodes.
+    pub fn is_empty(&self) -> bool {
+        self.links.is_empty()
+    }
+
+    /// Queues a message for node `node`.
+    pub fn send(&mut self, node: usize, msg: Message) {
+        if let Some(link) = self.links.get_mut(node) {
+            link.outbox.push_back(msg);
+        }
+    }
+
+    /// Bytes written to node `node`'s device.
+    pub fn bytes_sent(&self, node: usize) -> u64 {
+        self.links.get(node).map_or(0, |l| l.bytes_sent)
+    }
+
+    /// Resends and damaged frames on the host's side of the links.
+    pub fn link_stats(&self) -> ChannelStats {
+        self.links.iter().fold(ChannelStats::default(), |a, l| ChannelStats {
+            retransmitted: a.retransmitted + l.channel.stats.retransmitted,
+            corrupted: a.corrupted + l.channel.stats.corrupted,
+            discarded: a.discarded + l.channel.stats.discarded,
+        })
+    }
+
+    /// Moves messages until `host` is finished; fails naming a node that
+    /// stops answering.
+    pub fn run(&mut self, host: &mut impl HostEndpoint) -> Result<RunStats, HostError> {
+        for (node, msg) in std::mem::take(&mut self.greeted) {
+            host.receive(node, self.micros(), msg);
+        }
+        let mut rounds = 0;
+        while !host.finished() {
+            rounds += 1;
+            let moved = self.pump(&mut |node, at, msg| host.receive(node, at, msg))?;
+            self.heartbeat();
+            self.check_alive()?;
+            if !moved {
+                std::thread::sleep(Duration::from_micros(200));
+            }
+        }
+        // Let the last acknowledgements out so the nodes' windows drain.
+        self.pump(&mut |_, _, _| {})?;
+        Ok(RunStats { end: self.micros(), rounds })
+    }
+
+    /// One pass over the devices: read, deliver (with the host's time in
+    /// microseconds), write. Returns whether any byte moved.
+    fn pump(&mut self, deliver: &mut dyn FnMut(u16, u64, Message)) -> Result<bool, HostError> {
+        let now = self.micros();
+        let mut moved = false;
+        for (i, link) in self.links.iter_mut().enumerate() {
+            let bytes = read_available(link)?;
+            moved |= !bytes.is_empty();
+            let mut got = Vec::new();
+            link.channel.receive(&bytes, |m| {
+                got.push(m);
+                true
+            });
+            for m in got {
+                deliver(i as u16, now, m);
+            }
+            while link.channel.can_send() {
+                let Some(m) = link.outbox.pop_front() else { break };
+                if let Err(m) = link.channel.send(m) {
+                    link.outbox.push_front(m);
+                    break;
+                }
+            }
+            let unsent = &mut link.unsent;
+            link.channel.transmit(now, |frame| {
+                let room = unsent.len() + frame.len() <= TX_QUEUE;
+                if room {
+                    unsent.extend(frame);
+                }
+                room
+            });
+            moved |= flush(link)?;
+        }
+        Ok(moved)
+    }
+
+    /// A hello to every node with nothing in flight, so that each owes an ack.
+    fn heartbeat(&mut self) {
+        if self.last_heartbeat.elapsed() < HEARTBEAT {
+            return;
+        }
+        self.last_heartbeat = Instant::now();
+        let hello = Message::Hello(Hello {
+            version: PROTOCOL_VERSION,
+            node: u16::MAX,
+            capacity: Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 },
+        });
+        for link in &mut self.links {
+            if !link.channel.busy() && link.outbox.is_empty() {
+                link.outbox.push_back(hello.clone());
+            }
+        }
+    }
+
+    fn check_alive(&self) -> Result<(), HostError> {
+        let now = self.micros();
+        for (i, link) in self.links.iter().enumerate() {
+            let silent = Duration::from_micros(link.channel.unanswered_for(now));
+            if silent > self.timeout {
+                return Err(HostError::Node(format!(
+                    "{} on {} stopped answering: no acknowledgement for {:.1} s",
+                    self.name(i),
+                    link.name,
+                    silent.as_secs_f64()
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    fn name(&self, i: usize) -> String {
+        self.names.get(i).cloned().unwrap_or_else(|| format!("node {i}"))
+    }
+
+    fn micros(&self) -> u64 {
+        self.started.elapsed().as_micros() as u64
+    }
+}
+
+fn open_link(path: &str) -> Result<Link, HostError> {
+    let port = serialport::new(path, BAUD).timeout(Duration::from_millis(1)).open().map_err(|e| {
+        let why = match e.kind {
+            serialport::ErrorKind::NoDevice => "is missing".to_string(),
+            serialport::ErrorKind::Io(ErrorKind::NotFound) => "is missing".to_string(),
+            serialport::ErrorKind::Io(ErrorKind::ResourceBusy) => {
+                "is busy (another program has it open)".into()
+            }
+            _ => format!("cannot be opened: {}", e.description),
+        };
+        HostError::Serial(format!("serial device {path} {why}"))
+    })?;
+    Ok(Link {
+        name: path.to_string(),
+        port,
+        channel: Channel::new(RESEND_AFTER_US),
+        outbox: VecDeque::new(),
+        hello: None,
+        bytes_sent: 0,
+        unsent: VecDeque::new(),
+    })
+}
+
+/// Writes what the device takes now; returns whether it took anything.
+fn flush(link: &mut Link) -> Result<bool, HostError> {
+    if link.unsent.is_empty() {
+        return Ok(false);
+    }
+    match link.port.write(link.unsent.make_contiguous()) {
+        Ok(n) => {
+            link.unsent.drain(..n);
+            link.bytes_sent += n as u64;
+            Ok(n > 0)
+        }
+        Err(e)
+            if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted) =>
+        {
+            Ok(false)
+        }
+        Err(e) => Err(HostError::Node(format!("the link on {} closed: {e}", link.name))),
+    }
+}
+
+fn read_available(link: &mut Link) -> Result<Vec<u8>, HostError> {
+    let closed = |e: String| HostError::Node(format!("the link on {} closed: {e}", link.name));
+    let waiting = link.port.bytes_to_read().map_err(|e| closed(e.to_string()))?;
+    if waiting == 0 {
+        return Ok(Vec::new());
+    }
+    let mut buf = vec![0u8; waiting as usize];
+    match link.port.read(&mut buf) {
+        Ok(n) => {
+            buf.truncate(n);
+            Ok(buf)
+        }
+        Err(e) if e.kind() == ErrorKind::TimedOut || e.kind() == ErrorKind::WouldBlock => Ok(Vec::new()),
+        Err(e) => Err(closed(e.to_string())),
+    }
+}

@@ -1,0 +1,89 @@
+//! The node firmware on emulated boards: a 2x2x2 array of QEMU mps2-an385
+//! instances renders the same image as the in-memory board, and a node that
+//! stops answering is named.
+//!
+//! Needs `qemu-system-arm` and the firmware (`scripts/firmware.sh`); the
+//! test command (`scripts/test.sh`) installs and builds both first.
+
+use std::path::PathBuf;
+use std::process::Command;
+use std::time::Duration;
+
+use host_tool::backend::{Backend, render};
+use host_tool::qemu::{QEMU, QemuArray};
+use host_tool::render::{RenderOptions, check_frame, even_partition, render_on, render_sim};
+use host_tool::scene::Scene;
+use host_tool::serial::SerialArray;
+use link_proto::{Balance, SlidePolicy};
+
+fn firmware() -> PathBuf {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let elf = root.join("target/thumbv7m-none-eabi/release/node");
+    assert!(elf.is_file(), "{} is missing: run scripts/firmware.sh (scripts/test.sh does)", elf.display());
+    let qemu = Command::new(QEMU).arg("--version").output();
+    assert!(
+        qemu.is_ok_and(|o| o.status.success()),
+        "{QEMU} is missing: apt-get install qemu-system-arm (scripts/test.sh does)"
+    );
+    elf
+}
+
+fn scene() -> Scene {
+    Scene::random(24, 7, 1.0, [12, 12, 12]).expect("valid scene")
+}
+
+fn options(balance: Option<Balance>) -> RenderOptions {
+    let mut opts = RenderOptions::new([2, 2, 2]);
+    opts.size = [24, 24];
+    opts.level_depth = 1;
+    opts.balance = balance;
+    opts
+}
+
+#[test]
+fn qemu_array_matches_the_in_memory_board() {
+    let firmware = firmware();
+    let s = scene();
+    let sliding = Balance { interval: 500_000, threshold: 1 << 16, step: 1, policy: SlidePolicy::Paper };
+    for balance in [None, Some(sliding)] {
+        let opts = options(balance);
+        let memory = render_sim(&s, &opts).expect("in-memory render");
+        let qemu = render(&s, &opts, &Backend::Qemu { firmware: firmware.clone() }, Duration::from_secs(30))
+            .unwrap_or_else(|e| panic!("qemu render ({balance:?}): {e}"));
+        assert_eq!(qemu.frame.rays_created, qemu.frame.rays_terminated, "every ray accounted for");
+        assert_eq!(qemu.frame.rays_created, memory.frame.rays_created);
+        assert!(
+            qemu.frame.sums == memory.frame.sums,
+            "pixel sums differ from the in-memory board ({balance:?})"
+        );
+        assert!(qemu.frame.loads.iter().all(Option::is_some), "every node reported its load");
+        if balance.is_some() {
+            eprintln!("qemu with sliding: {} slides committed", qemu.frame.slides.len());
+        }
+    }
+}
+
+#[test]
+fn a_frozen_node_is_named_after_the_time_out() {
+    let firmware = firmware();
+    let s = scene();
+    let opts = options(None);
+    let qemu = QemuArray::launch(opts.array, &firmware).expect("emulators start");
+    let partition = even_partition(&s, &opts).expect("partition");
+    let names = (0..8).map(|i| format!("node {i}")).collect();
+    let mut array = SerialArray::open(&qemu.ptys, names, Duration::from_secs(3)).expect("ptys open");
+    array.connect().expect("every node says hello");
+    check_frame(&s, &opts, &partition, array.capacity()).expect("fits");
+    // Freeze node 5: its pty stays open, but it never answers again.
+    let pid = qemu.pid(5).expect("node 5 runs").to_string();
+    assert!(Command::new("kill").args(["-STOP", &pid]).status().is_ok_and(|s| s.success()));
+    let started = std::time::Instant::now();
+    let err = match render_on(&mut array, &s, &opts, partition) {
+        Ok(_) => panic!("a render with a frozen node cannot finish"),
+        Err(e) => e,
+    };
+    let _ = Command::new("kill").args(["-CONT", &pid]).status();
+    assert_eq!(err.exit_code(), 30, "{err}");
+    assert!(err.to_string().contains("node 5") && err.to_string().contains("stopped answering"), "{err}");
+    assert!(started.elapsed() < Duration::from_secs(60), "gave up in {:?}", started.elapsed());
+}

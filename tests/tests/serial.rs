@@ -1,0 +1,54 @@
+//! The serial backend's errors: a missing device, and (over a
+//! pseudo-terminal) a node speaking another protocol version. A busy device
+//! (EBUSY) cannot be staged here: the tests run as root, which may open an
+//! exclusive tty anyway.
+
+use std::io::Write;
+use std::time::Duration;
+
+use host_tool::backend::render_serial;
+use host_tool::render::RenderOptions;
+use host_tool::scene::Scene;
+use link_proto::{Capacity, Frame, Hello, MAX_FRAME_LEN, Message, encode_frame};
+use serialport::{SerialPort, TTYPort};
+
+fn scene() -> Scene {
+    Scene::random(4, 1, 1.0, [4, 4, 4]).expect("valid scene")
+}
+
+#[test]
+fn a_missing_device_is_a_serial_error() {
+    let opts = RenderOptions::new([1, 1, 1]);
+    let err = render_serial(&scene(), &opts, &["/dev/no-such-board".into()], Duration::from_secs(1))
+        .expect_err("no device, no render");
+    assert_eq!(err.exit_code(), 21, "{err}");
+    assert!(err.to_string().contains("/dev/no-such-board") && err.to_string().contains("missing"), "{err}");
+}
+
+#[test]
+fn a_node_of_another_protocol_version_is_refused() {
+    let (mut master, slave) = TTYPort::pair().expect("a pty pair");
+    let path = slave.name().expect("pty has a name");
+    drop(slave);
+    // A node from the future: it says hello with version 99, over and over.
+    let node = std::thread::spawn(move || {
+        let hello = Message::Hello(Hello {
+            version: 99,
+            node: 0,
+            capacity: Capacity { spheres: 8, refs: 64, cubes: 64, rays: 64 },
+        });
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        let n = encode_frame(&Frame { seq: 0, msg: hello }, &mut buf).expect("encodes");
+        for _ in 0..50 {
+            if master.write_all(&buf[..n]).is_err() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    });
+    let opts = RenderOptions::new([1, 1, 1]);
+    let err = render_serial(&scene(), &opts, &[path], Duration::from_secs(5)).expect_err("refused");
+    assert_eq!(err.exit_code(), 31, "{err}");
+    assert!(err.to_string().contains("version 99"), "{err}");
+    node.join().expect("fake node");
+}
