@@ -354,13 +354,14 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
     write_atomic(&args.summary, summary.as_bytes())?;
     write_atomic(&args.load_history, history.as_bytes())?;
     eprintln!(
-        "rendered {}x{} on {}x{}x{} nodes: makespan {} cycles, imbalance {:.3}, {} rays, {:.2} s -> {}",
+        "rendered {}x{} on {}x{}x{} nodes: makespan {} {}, imbalance {:.3}, {} rays, {:.2} s -> {}",
         f.width,
         f.height,
         opts.array[0],
         opts.array[1],
         opts.array[2],
         f.makespan,
+        if backend == Backend::Sim { "cycles" } else { "us of host time" },
         imbalance(&result),
         f.rays_terminated,
         result.wall.as_secs_f64(),
