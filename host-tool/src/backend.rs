@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use crate::error::{HostError, input};
 use crate::qemu::QemuArray;
-use crate::render::{RenderOptions, RenderResult, check_frame, even_partition, render_on, render_sim};
+use crate::render::{Array, RenderOptions, RenderResult, check_frame, even_partition, render_on, render_sim};
 use crate::scene::Scene;
 use crate::serial::SerialArray;
 

@@ -100,8 +100,7 @@ impl Partition {
 
     /// Array coordinate of node `id` (x fastest).
     pub fn coord(&self, id: usize) -> [u16; 3] {
-        let [nx, ny, _] = self.array.map(usize::from);
-        [(id % nx) as u16, ((id / nx) % ny) as u16, (id / (nx * ny)) as u16]
+        node_fw::wiring::coord_of(id, self.array)
     }
 
     /// The box of node `id`.

@@ -16,7 +16,7 @@ use std::sync::mpsc;
 use std::time::Duration;
 
 use node_fw::Port;
-use node_fw::wiring::{index_of, uart_ports};
+use node_fw::wiring::{coord_of, index_of, uart_ports};
 
 use crate::error::{HostError, input};
 
@@ -124,12 +124,6 @@ impl Drop for QemuArray {
             let _ = child.wait();
         }
     }
-}
-
-/// Node coordinates of index `id` (x fastest).
-fn coord_of(id: usize, array: [u16; 3]) -> [u16; 3] {
-    let [nx, ny, _] = array.map(usize::from);
-    [(id % nx) as u16, ((id / nx) % ny) as u16, (id / (nx * ny)) as u16]
 }
 
 /// Reads QEMU's "char device redirected to /dev/pts/N (label serial0)" line.

@@ -115,33 +115,6 @@ impl Array for Board {
     }
 }
 
-impl Array for crate::serial::SerialArray {
-    fn nodes(&self) -> usize {
-        self.len()
-    }
-
-    fn capacity(&self) -> Capacity {
-        crate::serial::SerialArray::capacity(self)
-    }
-
-    fn send(&mut self, node: usize, msg: Message) {
-        crate::serial::SerialArray::send(self, node, msg);
-    }
-
-    fn run<H: HostEndpoint>(&mut self, host: &mut H) -> Result<RunStats, HostError> {
-        crate::serial::SerialArray::run(self, host)
-    }
-
-    fn bytes_sent(&self, node: usize) -> [u64; 7] {
-        // The host sees only its own link to each node.
-        [0, 0, 0, 0, 0, 0, crate::serial::SerialArray::bytes_sent(self, node)]
-    }
-
-    fn link_stats(&self) -> ChannelStats {
-        crate::serial::SerialArray::link_stats(self)
-    }
-}
-
 /// The even partition of `scene` over `opts.array` along the chosen driving axis.
 pub fn even_partition(scene: &Scene, opts: &RenderOptions) -> Result<Partition, HostError> {
     let axis = match opts.driving_axis {

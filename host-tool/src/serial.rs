@@ -19,6 +19,7 @@ use serialport::SerialPort;
 use sim_board::{HostEndpoint, RunStats};
 
 use crate::error::HostError;
+use crate::render::Array;
 
 /// Unacknowledged frames per node link on the host's side.
 const WINDOW: usize = 8;
@@ -66,13 +67,8 @@ impl SerialArray {
 
     /// Waits until every node has said hello; checks versions.
     pub fn connect(&mut self) -> Result<(), HostError> {
-        let hello = Message::Hello(Hello {
-            version: PROTOCOL_VERSION,
-            node: u16::MAX,
-            capacity: Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 },
-        });
         for i in 0..self.links.len() {
-            self.send(i, hello.clone());
+            self.send(i, host_hello());
         }
         let deadline = Instant::now() + self.timeout;
         while self.links.iter().any(|l| l.hello.is_none()) {
@@ -103,70 +99,6 @@ impl SerialArray {
             }
         }
         Ok(())
-    }
-
-    /// The smallest capacity over the nodes.
-    pub fn capacity(&self) -> Capacity {
-        let caps = self.links.iter().filter_map(|l| l.hello.map(|h| h.capacity));
-        caps.reduce(|a, b| Capacity {
-            spheres: a.spheres.min(b.spheres),
-            refs: a.refs.min(b.refs),
-            cubes: a.cubes.min(b.cubes),
-            rays: a.rays.min(b.rays),
-        })
-        .unwrap_or(Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 })
-    }
-
-    /// Number of nodes.
-    pub fn len(&self) -> usize {
-        self.links.len()
-    }
-
-    /// Whether there are no nodes.
-    pub fn is_empty(&self) -> bool {
-        self.links.is_empty()
-    }
-
-    /// Queues a message for node `node`.
-    pub fn send(&mut self, node: usize, msg: Message) {
-        if let Some(link) = self.links.get_mut(node) {
-            link.outbox.push_back(msg);
-        }
-    }
-
-    /// Bytes written to node `node`'s device.
-    pub fn bytes_sent(&self, node: usize) -> u64 {
-        self.links.get(node).map_or(0, |l| l.bytes_sent)
-    }
-
-    /// Resends and damaged frames on the host's side of the links.
-    pub fn link_stats(&self) -> ChannelStats {
-        self.links.iter().fold(ChannelStats::default(), |a, l| ChannelStats {
-            retransmitted: a.retransmitted + l.channel.stats.retransmitted,
-            corrupted: a.corrupted + l.channel.stats.corrupted,
-            discarded: a.discarded + l.channel.stats.discarded,
-        })
-    }
-
-    /// Moves messages until `host` is finished; fails naming a node that
-    /// stops answering.
-    pub fn run(&mut self, host: &mut impl HostEndpoint) -> Result<RunStats, HostError> {
-        for (node, msg) in std::mem::take(&mut self.greeted) {
-            host.receive(node, self.micros(), msg);
-        }
-        let mut rounds = 0;
-        while !host.finished() {
-            rounds += 1;
-            let moved = self.pump(&mut |node, at, msg| host.receive(node, at, msg))?;
-            self.heartbeat();
-            self.check_alive()?;
-            if !moved {
-                std::thread::sleep(Duration::from_micros(200));
-            }
-        }
-        // Let the last acknowledgements out so the nodes' windows drain.
-        self.pump(&mut |_, _, _| {})?;
-        Ok(RunStats { end: self.micros(), rounds })
     }
 
     /// One pass over the devices: read, deliver (with the host's time in
@@ -211,14 +143,9 @@ impl SerialArray {
             return;
         }
         self.last_heartbeat = Instant::now();
-        let hello = Message::Hello(Hello {
-            version: PROTOCOL_VERSION,
-            node: u16::MAX,
-            capacity: Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 },
-        });
         for link in &mut self.links {
             if !link.channel.busy() && link.outbox.is_empty() {
-                link.outbox.push_back(hello.clone());
+                link.outbox.push_back(host_hello());
             }
         }
     }
@@ -246,6 +173,75 @@ impl SerialArray {
     fn micros(&self) -> u64 {
         self.started.elapsed().as_micros() as u64
     }
+}
+
+impl Array for SerialArray {
+    /// The smallest capacity over the nodes.
+    fn capacity(&self) -> Capacity {
+        let caps = self.links.iter().filter_map(|l| l.hello.map(|h| h.capacity));
+        caps.reduce(|a, b| Capacity {
+            spheres: a.spheres.min(b.spheres),
+            refs: a.refs.min(b.refs),
+            cubes: a.cubes.min(b.cubes),
+            rays: a.rays.min(b.rays),
+        })
+        .unwrap_or(Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 })
+    }
+
+    fn nodes(&self) -> usize {
+        self.links.len()
+    }
+
+    /// Queues a message for node `node`.
+    fn send(&mut self, node: usize, msg: Message) {
+        if let Some(link) = self.links.get_mut(node) {
+            link.outbox.push_back(msg);
+        }
+    }
+
+    fn bytes_sent(&self, node: usize) -> [u64; 7] {
+        // The host sees only its own link to each node.
+        [0, 0, 0, 0, 0, 0, self.links.get(node).map_or(0, |l| l.bytes_sent)]
+    }
+
+    /// Resends and damaged frames on the host's side of the links.
+    fn link_stats(&self) -> ChannelStats {
+        self.links.iter().fold(ChannelStats::default(), |a, l| ChannelStats {
+            retransmitted: a.retransmitted + l.channel.stats.retransmitted,
+            corrupted: a.corrupted + l.channel.stats.corrupted,
+            discarded: a.discarded + l.channel.stats.discarded,
+        })
+    }
+
+    /// Moves messages until `host` is finished; fails naming a node that
+    /// stops answering.
+    fn run<H: HostEndpoint>(&mut self, host: &mut H) -> Result<RunStats, HostError> {
+        for (node, msg) in std::mem::take(&mut self.greeted) {
+            host.receive(node, self.micros(), msg);
+        }
+        let mut rounds = 0;
+        while !host.finished() {
+            rounds += 1;
+            let moved = self.pump(&mut |node, at, msg| host.receive(node, at, msg))?;
+            self.heartbeat();
+            self.check_alive()?;
+            if !moved {
+                std::thread::sleep(Duration::from_micros(200));
+            }
+        }
+        // Let the last acknowledgements out so the nodes' windows drain.
+        self.pump(&mut |_, _, _| {})?;
+        Ok(RunStats { end: self.micros(), rounds })
+    }
+}
+
+/// The host's hello: its protocol version (nodes check it), no capacities.
+fn host_hello() -> Message {
+    Message::Hello(Hello {
+        version: PROTOCOL_VERSION,
+        node: u16::MAX,
+        capacity: Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 },
+    })
 }
 
 fn open_link(path: &str) -> Result<Link, HostError> {

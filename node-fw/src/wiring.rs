@@ -22,6 +22,12 @@ pub fn index_of(coord: [u16; 3], array: [u16; 3]) -> Option<u16> {
     u16::try_from(x + nx * (y + ny * z)).ok()
 }
 
+/// The coordinate of node `index` in `array` (the inverse of [`index_of`]).
+pub fn coord_of(index: usize, array: [u16; 3]) -> [u16; 3] {
+    let [nx, ny, _] = array.map(|n| usize::from(n.max(1)));
+    [(index % nx) as u16, ((index / nx) % ny) as u16, (index / (nx * ny)) as u16]
+}
+
 /// The neighbour ports that exist for `coord` in `array`, in port order.
 pub fn neighbour_ports(coord: [u16; 3], array: [u16; 3]) -> Vec<Port, 6> {
     let mut ports = Vec::new();
@@ -90,5 +96,7 @@ mod tests {
         assert_eq!(index_of([1, 0, 0], [2, 2, 2]), Some(1));
         assert_eq!(index_of([1, 1, 1], [2, 2, 2]), Some(7));
         assert_eq!(index_of([0, 0, 3], [4, 4, 3]), None);
+        assert_eq!(coord_of(7, [2, 2, 2]), [1, 1, 1]);
+        assert_eq!(coord_of(5, [3, 2, 1]), [2, 1, 0]);
     }
 }

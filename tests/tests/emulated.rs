@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use host_tool::backend::{Backend, render};
 use host_tool::qemu::{QEMU, QemuArray};
-use host_tool::render::{RenderOptions, check_frame, even_partition, render_on, render_sim};
+use host_tool::render::{Array, RenderOptions, check_frame, even_partition, render_on, render_sim};
 use host_tool::scene::Scene;
 use host_tool::serial::SerialArray;
 use link_proto::{Balance, SlidePolicy};

@@ -108,14 +108,8 @@ impl Uart {
         Self { base: def.base, overruns: 0 }
     }
 
-    fn status(&mut self) -> u32 {
-        let sr = Reg::at(self.base, SR).read();
-        if sr & SR_ORE != 0 {
-            // Reading SR then DR clears the overrun.
-            let _ = Reg::at(self.base, DR).read();
-            self.overruns = self.overruns.wrapping_add(1);
-        }
-        sr
+    fn status(&self) -> u32 {
+        Reg::at(self.base, SR).read()
     }
 }
 
@@ -133,7 +127,15 @@ impl Read for Uart {
     /// Blocks until a byte arrives (embedded-io's contract); reads one.
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, Infallible> {
         let Some(first) = buf.first_mut() else { return Ok(0) };
-        while self.status() & SR_RXNE == 0 {}
+        let mut sr = self.status();
+        while sr & SR_RXNE == 0 {
+            sr = self.status();
+        }
+        // An overrun keeps the byte in DR and loses the next; reading SR then
+        // DR delivers the kept byte and clears the overrun.
+        if sr & SR_ORE != 0 {
+            self.overruns = self.overruns.wrapping_add(1);
+        }
         *first = Reg::at(self.base, DR).read() as u8;
         Ok(1)
     }
