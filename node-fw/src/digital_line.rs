@@ -5,10 +5,12 @@
 //! the raw distance along axis `i` from the origin to the next cube boundary in
 //! the direction of travel, so the boundary is crossed at `t_i = N_i / |D_i|`.
 //! Axis `i` is crossed before axis `j` iff `N_i |D_j| < N_j |D_i|`. The walk
-//! keeps the three differences `e_ij = N_i |D_j| - N_j |D_i|` (i < j); a step
-//! along axis `i` adds `ONE |D_j|` to `e_ij` or subtracts `ONE |D_j|` from
-//! `e_ji`, so a step is two additions and two sign tests. No division, no
-//! rounding, no drift over any length.
+//! keeps the three differences `e_ij = N_i |D_j| - N_j |D_i|` (i < j), less
+//! one so that "no later" is a sign test; a step along axis `i` adds
+//! `ONE |D_j|` to `e_ij` or subtracts `ONE |D_j|` from `e_ji`, so a step is two
+//! additions and three sign tests. No division, no rounding, no drift over any
+//! length. `N` itself is not kept: the cell and the origin give it when a hit
+//! must be placed in the cube.
 //!
 //! **Tie rule.** When boundaries are crossed at the same `t` (the ray passes
 //! through a cube edge or corner), the lowest axis (x, then y, then z) steps
@@ -22,8 +24,8 @@
 //! [`crate::subregion`]) makes that sufficient.
 //!
 //! The state is entirely `(origin, direction, cell)`: [`DigitalLine::resume`]
-//! rebuilds `N` and the cross products from the cell, so a ray passed to another
-//! node continues bit-identically.
+//! rebuilds the differences from the cell, so a ray passed to another node
+//! continues bit-identically.
 
 use crate::error::{Error, Field};
 use crate::geometry::{Grid, Line};
@@ -37,12 +39,13 @@ pub struct DigitalLine {
     step: [i32; 3],
     /// `|D_i|`, raw Q2.30.
     abs_d: [i64; 3],
-    /// `N_i`, raw Q16.16 (meaningless for an axis that does not move).
-    n: [i64; 3],
+    /// The line's origin, raw Q16.16.
+    origin: [i32; 3],
     /// `ONE |D_i|`: what a step along another axis adds to a difference.
     inc: [i64; 3],
-    /// `e01, e02, e12` with `e_ij = N_i |D_j| - N_j |D_i|`; a pair with an
-    /// axis that does not move holds a constant that orders it last.
+    /// `e01 - 1, e02 - 1, e12 - 1` with `e_ij = N_i |D_j| - N_j |D_i|`: axis
+    /// `i` goes no later than `j` iff its entry is negative. A pair with an
+    /// axis that does not move holds a constant that orders that axis last.
     e: [i64; 3],
     /// Axis whose boundary comes first (tie: lowest axis).
     next: usize,
@@ -94,7 +97,8 @@ impl DigitalLine {
         let o = line.origin();
         let d = line.dir();
         let mut walk =
-            DigitalLine { cell, step: [0; 3], abs_d: [0; 3], n: [0; 3], inc: [0; 3], e: [0; 3], next: 0 };
+            DigitalLine { cell, step: [0; 3], abs_d: [0; 3], origin: o, inc: [0; 3], e: [0; 3], next: 0 };
+        let mut n_all = [0i64; 3];
         let mut entry = Ratio { num: 0, den: 1 };
         for axis in 0..3 {
             let (oi, di, ci) =
@@ -117,16 +121,16 @@ impl DigitalLine {
             }
             set(&mut walk.step, axis, di.signum() as i32);
             set(&mut walk.abs_d, axis, di.abs());
-            set(&mut walk.n, axis, n);
+            set(&mut n_all, axis, n);
         }
         if walk.abs_d == [0; 3] {
             return Err(Error::OutOfRange(Field::Direction));
         }
         walk.inc = walk.abs_d.map(|d| ONE * d);
-        walk.e = [(0, 1), (0, 2), (1, 2)].map(|(i, j)| walk.difference(i, j));
+        walk.e = [(0, 1), (0, 2), (1, 2)].map(|(i, j)| walk.difference(&n_all, i, j));
         walk.next = walk.first_axis();
         // The cube must be entered no later than it is left.
-        let exit = Ratio { num: get(&walk.n, walk.next), den: get(&walk.abs_d, walk.next) };
+        let exit = Ratio { num: walk.boundary(walk.next), den: get(&walk.abs_d, walk.next) };
         if exit.lt(entry) {
             return Err(Error::OutOfRange(Field::Cell));
         }
@@ -144,7 +148,9 @@ impl DigitalLine {
         self.next
     }
 
-    /// Moves to the next cube; returns the axis stepped along.
+    /// Moves to the next cube; returns the axis stepped along. Inlined: it is
+    /// the inner loop of every walk.
+    #[inline]
     pub fn step(&mut self) -> usize {
         let axis = self.next;
         let [e01, e02, e12] = &mut self.e;
@@ -163,11 +169,8 @@ impl DigitalLine {
                 *e12 -= i1;
             }
         }
-        if let (Some(c), Some(s), Some(n)) =
-            (self.cell.get_mut(axis), self.step.get(axis), self.n.get_mut(axis))
-        {
+        if let (Some(c), Some(s)) = (self.cell.get_mut(axis), self.step.get(axis)) {
             *c += *s;
-            *n += ONE;
         }
         self.next = self.first_axis();
         axis
@@ -177,25 +180,34 @@ impl DigitalLine {
     /// cube. Exact: `t |D_a| <= N_a 2^30`.
     pub fn exits_at_or_after(&self, t: Scalar) -> bool {
         let a = self.next;
-        i64::from(t.to_bits()) * get(&self.abs_d, a) <= get(&self.n, a) << DIR_FRAC
+        i64::from(t.to_bits()) * get(&self.abs_d, a) <= self.boundary(a) << DIR_FRAC
+    }
+
+    /// `N_a`: raw distance from the origin to the current cube's boundary
+    /// ahead along moving axis `a`.
+    fn boundary(&self, a: usize) -> i64 {
+        let (c, o) = (i64::from(get32(&self.cell, a)), i64::from(get32(&self.origin, a)));
+        if get32(&self.step, a) > 0 { (c + 1) * ONE - o } else { o - c * ONE }
     }
 
     /// Lowest axis among those whose boundary is crossed first: axis `i` goes
-    /// no later than `j > i` iff `e_ij <= 0`.
+    /// no later than `j > i` iff `e_ij <= 0`, that is, iff its entry is negative.
+    #[inline]
     fn first_axis(&self) -> usize {
         let [e01, e02, e12] = self.e;
-        match (e01 <= 0, e02 <= 0, e12 <= 0) {
+        match (e01 < 0, e02 < 0, e12 < 0) {
             (true, true, _) => 0,
             (true, false, _) | (false, _, false) => 2,
             (false, _, true) => 1,
         }
     }
 
-    /// `e_ij` (i < j) for the current `N`; a moving axis always goes before
-    /// one that does not move (whose pairs never change, as its `ONE |D|` is 0).
-    fn difference(&self, i: usize, j: usize) -> i64 {
+    /// `e_ij - 1` (i < j) for boundary distances `n`; a moving axis always
+    /// goes before one that does not move (whose pairs never change, as its
+    /// `ONE |D|` is 0).
+    fn difference(&self, n: &[i64; 3], i: usize, j: usize) -> i64 {
         match (get(&self.abs_d, i) != 0, get(&self.abs_d, j) != 0) {
-            (true, true) => get(&self.n, i) * get(&self.abs_d, j) - get(&self.n, j) * get(&self.abs_d, i),
+            (true, true) => get(n, i) * get(&self.abs_d, j) - get(n, j) * get(&self.abs_d, i) - 1,
             (true, false) => i64::MIN,
             _ => i64::MAX,
         }
