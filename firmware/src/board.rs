@@ -1,5 +1,6 @@
 //! Boards: UART drivers and clocks, one module per board.
 
+pub mod boot_count;
 pub mod mmio;
 pub mod wake;
 

@@ -7,7 +7,8 @@
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
-use link_proto::{Balance, Capacity, InitialRays, Message, RenderStart, SceneEnd};
+use link_proto::{Balance, Capacity, ErrorCode, InitialRays, Message, RenderStart, SceneEnd};
+use node_fw::Port;
 use node_fw::pool::class_bound;
 use node_fw::reliable::ChannelStats;
 use sim_board::{Board, HostEndpoint, RunStats, SimConfig, SimNode};
@@ -248,14 +249,23 @@ fn node_errors(frame: &FrameBuffer, partition: &Partition) -> Result<(), HostErr
             link_proto::PROTOCOL_VERSION
         )));
     }
-    if let Some(&node) = frame.restarted.first() {
+    let restarted = |node: u16, how: String| {
         let c = partition.coord(usize::from(node));
-        return Err(HostError::Node(format!(
-            "node {node} ({},{},{}) restarted mid-render (it said hello again); no image written",
+        HostError::Node(format!(
+            "node {node} ({},{},{}) restarted mid-render ({how}); no image written",
             c[0], c[1], c[2]
-        )));
+        ))
+    };
+    if let Some(&node) = frame.restarted.first() {
+        return Err(restarted(node, "it said hello again".into()));
     }
     let Some(e) = frame.errors.first() else { return Ok(()) };
+    let port = Port::ALL.get(e.a as usize).copied().unwrap_or(Port::Host);
+    if e.code == ErrorCode::PeerRestarted
+        && let Some(peer) = node_fw::wiring::neighbour_of(usize::from(e.node), port, partition.array)
+    {
+        return Err(restarted(peer, format!("its neighbour node {} saw it start again", e.node)));
+    }
     let c = partition.coord(usize::from(e.node));
     Err(HostError::Node(format!(
         "node {} ({},{},{}) reported {:?} (a = {}, b = {})",

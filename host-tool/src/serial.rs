@@ -206,11 +206,7 @@ impl Array for SerialArray {
 
     /// Resends and damaged frames on the host's side of the links.
     fn link_stats(&self) -> ChannelStats {
-        self.links.iter().fold(ChannelStats::default(), |a, l| ChannelStats {
-            retransmitted: a.retransmitted + l.channel.stats.retransmitted,
-            corrupted: a.corrupted + l.channel.stats.corrupted,
-            discarded: a.discarded + l.channel.stats.discarded,
-        })
+        self.links.iter().map(|l| l.channel.stats).sum()
     }
 
     /// Moves messages until `host` is finished; fails naming a node that
@@ -235,6 +231,14 @@ impl Array for SerialArray {
     }
 }
 
+/// This host run's incarnation on its links: boards still running from an
+/// earlier run see a new one, drop that run's state and say hello again.
+fn host_incarnation() -> u32 {
+    let nanos =
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u32);
+    nanos ^ std::process::id().rotate_left(16)
+}
+
 /// The host's hello: its protocol version (nodes check it), no capacities.
 fn host_hello() -> Message {
     Message::Hello(Hello {
@@ -256,10 +260,12 @@ fn open_link(path: &str) -> Result<Link, HostError> {
         };
         HostError::Serial(format!("serial device {path} {why}"))
     })?;
+    let mut channel = Channel::new(RESEND_AFTER_US);
+    channel.set_incarnation(host_incarnation());
     Ok(Link {
         name: path.to_string(),
         port,
-        channel: Channel::new(RESEND_AFTER_US),
+        channel,
         outbox: VecDeque::new(),
         hello: None,
         bytes_sent: 0,

@@ -120,4 +120,8 @@ fn a_node_restarting_mid_render_is_named_and_no_image_is_written() {
     let args =
         ["render", "--spheres", "200", "--array", "2x2x2", "--size", "64x64", "--restart-node", "5@500000"];
     fails("restart", &args, None, 30, "node 5 (1,0,1) restarted mid-render");
+    // Over framed links a restart is a new incarnation on the node's links,
+    // noticed by the host's channel and the neighbours' alike.
+    let framed = [&args[..], &["--faults", "corrupt=0.01,drop=0.01"]].concat();
+    fails("restart-framed", &framed, None, 30, "node 5 (1,0,1) restarted mid-render");
 }

@@ -65,6 +65,11 @@ pub enum Message {
     /// Node to its driving-axis neighbour: give me the slab next to our boundary,
     /// moving it to `boundary` (the lighter node asks the busier one).
     SlideRequest(SlideOffer),
+    /// Link layer: the sender's channel starts a stream at sequence number 0;
+    /// `.0` names the sender's incarnation (it differs after a restart).
+    Sync(u32),
+    /// Link layer: reply to [`Message::Sync`], echoing the incarnation taken.
+    SyncAck(u32),
 }
 
 /// Dynamic load balancing by sliding boundaries.
@@ -420,6 +425,9 @@ pub enum ErrorCode {
     /// The node needs a neighbour link its board has no UART for (`a` = port
     /// index, `b` = neighbour UARTs on the board).
     PortCapacity,
+    /// The neighbour on port `a` restarted (a new incarnation on its link): the
+    /// rays and spheres it held are gone.
+    PeerRestarted,
 }
 
 /// A node's error, sent to the host. Firmware never panics on input.

@@ -36,6 +36,14 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
         Self { channels, inbox: [const { Deque::new() }; 7] }
     }
 
+    /// Sets the incarnation every channel announces: pick a new one on every
+    /// start (a boot counter, a clock), so peers notice the restart.
+    pub fn set_incarnation(&mut self, incarnation: u32) {
+        for channel in &mut self.channels {
+            channel.set_incarnation(incarnation);
+        }
+    }
+
     /// Feeds bytes that arrived on `port`.
     pub fn ingest(&mut self, port: Port, bytes: &[u8]) {
         let i = port.index();
@@ -78,11 +86,7 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
 
     /// Counters summed over the seven channels.
     pub fn stats(&self) -> ChannelStats {
-        self.channels.iter().fold(ChannelStats::default(), |a, c| ChannelStats {
-            retransmitted: a.retransmitted + c.stats.retransmitted,
-            corrupted: a.corrupted + c.stats.corrupted,
-            discarded: a.discarded + c.stats.discarded,
-        })
+        self.channels.iter().map(|c| c.stats).sum()
     }
 }
 
@@ -96,5 +100,10 @@ impl<const W: usize, const Q: usize> Links for FramedLinks<W, Q> {
             Some(channel) => channel.send(msg),
             None => Err(msg),
         }
+    }
+
+    fn peer_restarted(&mut self) -> Option<Port> {
+        let mut channels = self.channels.iter_mut().zip(Port::ALL);
+        channels.find_map(|(c, port)| c.take_peer_restart().then_some(port))
     }
 }

@@ -79,4 +79,10 @@ pub trait Links {
     fn recv(&mut self, port: Port) -> Option<Message>;
     /// Queues `msg` on `port`, or hands it back if the link is full.
     fn try_send(&mut self, port: Port, msg: Message) -> Result<(), Message>;
+    /// A port whose peer has restarted since the last call (a new incarnation
+    /// on a framed link). Links that cannot tell, such as in-memory queues,
+    /// never report one.
+    fn peer_restarted(&mut self) -> Option<Port> {
+        None
+    }
 }

@@ -228,6 +228,13 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     }
 
     fn receive<L: Links>(&mut self, links: &mut L, work: &mut Work) {
+        while let Some(port) = links.peer_restarted() {
+            match port {
+                // A new host session: whatever the old one set up is moot.
+                Port::Host => self.start_over(),
+                _ => self.fail(ErrorCode::PeerRestarted, port as u32, 0),
+            }
+        }
         for port in Port::ALL {
             while let Some(msg) = links.recv(port) {
                 work.received += 1;
@@ -280,6 +287,34 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             (p, Message::Space) if p != Port::Host => self.retry_refused(p),
             (port, msg) => self.fail(ErrorCode::Unexpected, port as u32, 100 + kind(&msg)),
         }
+    }
+
+    /// Back to the state of a fresh start, in place (a node is too large to
+    /// build anew on a board's stack), saying hello again.
+    fn start_over(&mut self) {
+        self.phase = Phase::Idle;
+        self.header = NO_HEADER;
+        self.grid = Grid::UNIT;
+        self.assign = None;
+        self.region.clear();
+        self.lights.clear();
+        self.spheres_seen = 0;
+        self.render = None;
+        self.cursor = 0;
+        self.pool.clear();
+        self.outstanding = [0; 6];
+        self.replies.iter_mut().for_each(Deque::clear);
+        self.refused = [false; 6];
+        self.space_due = [false; 6];
+        self.hello_due = true;
+        self.error_due = None;
+        self.load_due = None;
+        self.meter = LoadMeter::new();
+        self.totals = Totals { rays: 0, sphere_tests: 0, cube_steps: 0, refused: 0 };
+        self.balance = None;
+        self.intervals = IntervalClock::idle();
+        self.slide = SlideState::new();
+        self.control.clear();
     }
 
     fn begin_scene(&mut self, header: SceneHeader) {
@@ -1020,6 +1055,8 @@ fn kind(msg: &Message) -> u32 {
         Message::RayReply(_) => 17,
         Message::Space => 18,
         Message::SlideRequest(_) => 19,
+        Message::Sync(_) => 20,
+        Message::SyncAck(_) => 21,
     }
 }
 

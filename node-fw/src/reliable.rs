@@ -9,9 +9,21 @@
 //! all again from the oldest on a negative acknowledgement or when no
 //! acknowledgement has come for `timeout` ticks. Sans-IO: the caller passes
 //! the time in; storage is fixed at compile time.
+//!
+//! **Synchronisation.** Before its first data frame a channel sends
+//! [`Message::Sync`] with its *incarnation* (a number its owner picks anew on
+//! every start) until the peer answers [`Message::SyncAck`]; a receiver takes
+//! data only from a peer whose `Sync` it has seen. A `Sync` with a new
+//! incarnation from a peer already known means the peer restarted: the channel
+//! counts it, starts both directions again from sequence number 0 (its
+//! unacknowledged frames go to the new incarnation), and lets its owner know
+//! ([`Channel::take_peer_restart`]). A duplicate or late `Sync` of the known
+//! incarnation is only answered again, so it can never reset a running stream.
+//! One exception to "no data before `Sync`": a hello of another protocol
+//! version, so that a peer that predates `Sync` is still told apart.
 
 use heapless::Deque;
-use link_proto::{DecodeError, Frame, FrameDecoder, MAX_FRAME_LEN, Message, encode_frame};
+use link_proto::{DecodeError, Frame, FrameDecoder, MAX_FRAME_LEN, Message, PROTOCOL_VERSION, encode_frame};
 
 /// Sequence numbers wrap at 2^16; a window is far smaller, so `a` precedes
 /// `b` when the forward distance from `a` to `b` is less than half the space.
@@ -19,15 +31,36 @@ fn precedes(a: u16, b: u16) -> bool {
     a != b && b.wrapping_sub(a) < 0x8000
 }
 
-/// Counters of one channel.
+/// Counters of one channel (or, summed, of many).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ChannelStats {
     /// Data frames sent again.
     pub retransmitted: u32,
     /// Frames that failed their CRC or decoding.
     pub corrupted: u32,
-    /// Data frames dropped as duplicates or out of order.
+    /// Data frames dropped as duplicates, out of order, or before a `Sync`.
     pub discarded: u32,
+    /// Times the peer started again with a new incarnation.
+    pub peer_restarts: u32,
+}
+
+impl core::ops::Add for ChannelStats {
+    type Output = Self;
+
+    fn add(self, o: Self) -> Self {
+        Self {
+            retransmitted: self.retransmitted + o.retransmitted,
+            corrupted: self.corrupted + o.corrupted,
+            discarded: self.discarded + o.discarded,
+            peer_restarts: self.peer_restarts + o.peer_restarts,
+        }
+    }
+}
+
+impl core::iter::Sum for ChannelStats {
+    fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
+        iter.fold(Self::default(), |a, b| a + b)
+    }
 }
 
 /// One direction-pair of a reliable link: sends our data, receives theirs.
@@ -52,6 +85,18 @@ pub struct Channel<const W: usize> {
     /// Since when the peer has owed an ack: the last ack that moved the
     /// window, or the first send into an empty window.
     owed_since: Option<u64>,
+    /// Our incarnation, announced in `Sync`.
+    incarnation: u32,
+    /// The peer acknowledged our `Sync`: data frames may go.
+    synced: bool,
+    /// When our last `Sync` went out.
+    sync_sent_at: Option<u64>,
+    /// The peer's incarnation, once its `Sync` arrived.
+    peer: Option<u32>,
+    /// A `SyncAck` to send.
+    sync_ack_due: Option<u32>,
+    /// The peer restarted since the owner last asked.
+    peer_restarted: bool,
     decoder: FrameDecoder,
     timeout: u64,
     /// Counters.
@@ -59,7 +104,8 @@ pub struct Channel<const W: usize> {
 }
 
 impl<const W: usize> Channel<W> {
-    /// A channel that resends after `timeout` ticks without progress.
+    /// A channel of incarnation 0 that resends after `timeout` ticks without
+    /// progress. Set the incarnation before the first transmit.
     pub const fn new(timeout: u64) -> Self {
         Self {
             unacked: Deque::new(),
@@ -71,10 +117,23 @@ impl<const W: usize> Channel<W> {
             control_due: None,
             acked_now: false,
             owed_since: None,
+            incarnation: 0,
+            synced: false,
+            sync_sent_at: None,
+            peer: None,
+            sync_ack_due: None,
+            peer_restarted: false,
             decoder: FrameDecoder::new(),
             timeout,
-            stats: ChannelStats { retransmitted: 0, corrupted: 0, discarded: 0 },
+            stats: ChannelStats { retransmitted: 0, corrupted: 0, discarded: 0, peer_restarts: 0 },
         }
+    }
+
+    /// Sets the incarnation announced to the peer: it must differ from the
+    /// one this endpoint used before its last restart, or the peer cannot
+    /// tell that it restarted.
+    pub fn set_incarnation(&mut self, incarnation: u32) {
+        self.incarnation = incarnation;
     }
 
     /// Whether a new data message would fit in the window.
@@ -110,14 +169,35 @@ impl<const W: usize> Channel<W> {
         }
     }
 
+    /// Whether the peer restarted since the last call (then forgets it).
+    pub fn take_peer_restart(&mut self) -> bool {
+        core::mem::take(&mut self.peer_restarted)
+    }
+
     fn take(&mut self, frame: Frame, deliver: &mut impl FnMut(Message) -> bool) {
         match frame.msg {
+            Message::Sync(incarnation) => self.peer_synced(incarnation),
+            Message::SyncAck(incarnation) => {
+                // An answer to an older incarnation's `Sync` is stale.
+                if incarnation == self.incarnation && !self.synced {
+                    self.synced = true;
+                    self.acked_now = true;
+                }
+            }
+            // Acks of a stream we have not started (a stale peer's) mean nothing.
+            Message::Ack(_) | Message::Nak(_) if !self.synced => {}
             Message::Ack(seq) => self.acknowledged(seq),
             Message::Nak(seq) => {
                 // Everything before `seq` arrived; resend from `seq`.
                 self.acknowledged(seq.wrapping_sub(1));
                 self.resend_from = 0;
             }
+            // A peer of another protocol version may not know `Sync`; its
+            // hello is taken as it comes, so the version mismatch is reported.
+            Message::Hello(h) if self.peer.is_none() && h.version != PROTOCOL_VERSION => {
+                deliver(Message::Hello(h));
+            }
+            _ if self.peer.is_none() => self.stats.discarded += 1,
             msg if frame.seq == self.expected => {
                 if deliver(msg) {
                     self.expected = self.expected.wrapping_add(1);
@@ -138,6 +218,37 @@ impl<const W: usize> Channel<W> {
         }
     }
 
+    /// The peer's `Sync`: a first one starts its stream, the same again is
+    /// answered again, a new incarnation restarts both directions.
+    fn peer_synced(&mut self, incarnation: u32) {
+        self.sync_ack_due = Some(incarnation);
+        match self.peer {
+            Some(known) if known == incarnation => return,
+            Some(_) => self.restart_stream(),
+            None => {}
+        }
+        self.peer = Some(incarnation);
+        self.expected = 0;
+        self.control_due = None;
+    }
+
+    /// The peer lost our stream with its old state: renumber what it has not
+    /// acknowledged from 0 and announce ourselves to the new incarnation.
+    fn restart_stream(&mut self) {
+        self.peer_restarted = true;
+        self.stats.peer_restarts += 1;
+        let mut seq = 0u16;
+        for frame in self.unacked.iter_mut() {
+            frame.seq = seq;
+            seq = seq.wrapping_add(1);
+        }
+        self.next_seq = seq;
+        self.resend_from = 0;
+        self.written = 0;
+        self.synced = false;
+        self.sync_sent_at = None;
+    }
+
     /// Drops every frame up to and including `seq` from the window.
     fn acknowledged(&mut self, seq: u16) {
         while let Some(front) = self.unacked.front() {
@@ -151,26 +262,25 @@ impl<const W: usize> Channel<W> {
         }
     }
 
-    /// Writes what is due at `now` (acks, new frames, resends after a time-out)
-    /// through `write`, which returns false when the byte link is full.
+    /// Writes what is due at `now` (sync and acks, new frames, resends after a
+    /// time-out) through `write`, which returns false when the byte link is full.
     pub fn transmit(&mut self, now: u64, mut write: impl FnMut(&[u8]) -> bool) {
         let mut buf = [0u8; MAX_FRAME_LEN];
-        if let Some(control) = self.control_due.clone() {
-            let sent = encode_frame(&Frame { seq: 0, msg: control }, &mut buf)
-                .is_ok_and(|n| write(buf.get(..n).unwrap_or_default()));
-            if sent {
-                self.control_due = None;
-            }
+        if let Some(incarnation) = self.sync_ack_due
+            && write_control(Message::SyncAck(incarnation), &mut buf, &mut write)
+        {
+            self.sync_ack_due = None;
         }
-        let acked = core::mem::take(&mut self.acked_now);
-        if acked || self.unacked.is_empty() {
-            self.progress_at = now;
+        if let Some(control) = self.control_due.clone()
+            && write_control(control, &mut buf, &mut write)
+        {
+            self.control_due = None;
         }
-        self.owed_since = match (self.unacked.is_empty(), self.owed_since) {
-            (true, _) => None,
-            (false, Some(since)) if !acked => Some(since),
-            (false, _) => Some(now),
-        };
+        self.track_progress(now);
+        if !self.synced {
+            self.announce(now, &mut buf, &mut write);
+            return;
+        }
         if !self.unacked.is_empty() && now.saturating_sub(self.progress_at) >= self.timeout {
             // No progress for a whole time-out: go back to the oldest frame.
             self.resend_from = 0;
@@ -189,14 +299,41 @@ impl<const W: usize> Channel<W> {
         }
     }
 
+    /// Notes when the window last moved and since when the peer owes an answer.
+    fn track_progress(&mut self, now: u64) {
+        let acked = core::mem::take(&mut self.acked_now);
+        if acked || self.unacked.is_empty() {
+            self.progress_at = now;
+        }
+        self.owed_since = match (self.unacked.is_empty(), self.owed_since) {
+            (true, _) => None,
+            (false, Some(since)) if !acked => Some(since),
+            (false, _) => Some(now),
+        };
+    }
+
+    /// Sends our `Sync` once there is data to start a stream for, and again
+    /// after every time-out without an answer.
+    fn announce(&mut self, now: u64, buf: &mut [u8], write: &mut impl FnMut(&[u8]) -> bool) {
+        let due = self.sync_sent_at.is_none_or(|at| now.saturating_sub(at) >= self.timeout);
+        if !self.unacked.is_empty() && due && write_control(Message::Sync(self.incarnation), buf, write) {
+            self.sync_sent_at = Some(now);
+        }
+    }
+
     /// How long the peer has left data frames unacknowledged at `now` (zero
     /// when nothing is owed): a peer that stops answering shows here.
     pub fn unanswered_for(&self, now: u64) -> u64 {
         self.owed_since.map_or(0, |since| now.saturating_sub(since))
     }
 
-    /// Whether data frames await acknowledgement.
+    /// Whether data frames await acknowledgement or control frames are due.
     pub fn busy(&self) -> bool {
-        !self.unacked.is_empty() || self.control_due.is_some()
+        !self.unacked.is_empty() || self.control_due.is_some() || self.sync_ack_due.is_some()
     }
+}
+
+/// Writes one unsequenced control frame; whether it went out whole.
+fn write_control(msg: Message, buf: &mut [u8], write: &mut impl FnMut(&[u8]) -> bool) -> bool {
+    encode_frame(&Frame { seq: 0, msg }, buf).is_ok_and(|n| write(buf.get(..n).unwrap_or_default()))
 }

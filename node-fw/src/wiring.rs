@@ -22,6 +22,15 @@ pub fn index_of(coord: [u16; 3], array: [u16; 3]) -> Option<u16> {
     u16::try_from(x + nx * (y + ny * z)).ok()
 }
 
+/// The index of the node on `port` of node `index`, if the array has one there.
+pub fn neighbour_of(index: usize, port: Port, array: [u16; 3]) -> Option<u16> {
+    let axis = port.axis()?;
+    let mut coord = coord_of(index, array);
+    let c = coord.get_mut(axis)?;
+    *c = if port.index().is_multiple_of(2) { c.checked_add(1)? } else { c.checked_sub(1)? };
+    index_of(coord, array)
+}
+
 /// The coordinate of node `index` in `array` (the inverse of [`index_of`]).
 pub fn coord_of(index: usize, array: [u16; 3]) -> [u16; 3] {
     let [nx, ny, _] = array.map(|n| usize::from(n.max(1)));
@@ -89,6 +98,17 @@ mod tests {
     fn six_uarts_are_cabled_the_same_everywhere() {
         let map = uart_ports::<6>([0, 1, 0], [2, 2, 1]).unwrap();
         assert_eq!(map, [Some(Port::PosX), None, None, Some(Port::NegY), None, None]);
+    }
+
+    #[test]
+    fn neighbours_by_port_stay_inside_the_array() {
+        // Node 5 of 2x2x2 sits at (1,0,1).
+        assert_eq!(neighbour_of(5, Port::NegX, [2, 2, 2]), Some(4));
+        assert_eq!(neighbour_of(5, Port::PosY, [2, 2, 2]), Some(7));
+        assert_eq!(neighbour_of(5, Port::NegZ, [2, 2, 2]), Some(1));
+        assert_eq!(neighbour_of(5, Port::PosX, [2, 2, 2]), None);
+        assert_eq!(neighbour_of(0, Port::NegY, [2, 2, 2]), None);
+        assert_eq!(neighbour_of(0, Port::Host, [2, 2, 2]), None);
     }
 
     #[test]

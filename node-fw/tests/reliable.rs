@@ -123,3 +123,120 @@ fn sequence_numbers_wrap() {
     // More than 2^16 messages through one channel.
     run(7, 0.0005, 0.01, 0.01, 70_000);
 }
+
+/// Runs `a` and `b` over a clean wire for `ticks` ticks from `*now`,
+/// collecting what each delivers.
+fn exchange(
+    a: &mut Channel<4>,
+    b: &mut Channel<4>,
+    now: &mut u64,
+    got_a: &mut Vec<Message>,
+    got_b: &mut Vec<Message>,
+) {
+    for _ in 0..50 {
+        *now += 1;
+        let (mut ab, mut ba) = (Vec::new(), Vec::new());
+        a.transmit(*now, |f| {
+            ab.extend_from_slice(f);
+            true
+        });
+        b.transmit(*now, |f| {
+            ba.extend_from_slice(f);
+            true
+        });
+        b.receive(&ab, |m| {
+            got_b.push(m);
+            true
+        });
+        a.receive(&ba, |m| {
+            got_a.push(m);
+            true
+        });
+    }
+}
+
+fn pair() -> (Channel<4>, Channel<4>) {
+    let (mut a, mut b) = (Channel::new(5), Channel::new(5));
+    a.set_incarnation(11);
+    b.set_incarnation(70);
+    (a, b)
+}
+
+#[test]
+fn a_restarted_peer_is_noticed_and_both_streams_start_again() {
+    let (mut a, mut b) = pair();
+    let (mut now, mut got_a, mut got_b) = (0, Vec::new(), Vec::new());
+    for i in 0..3 {
+        a.send(msg(i)).unwrap();
+    }
+    b.send(msg(100)).unwrap();
+    exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
+    assert_eq!((got_a.len(), got_b.len()), (1, 3));
+
+    // B restarts: fresh state, a new incarnation. A has one frame in flight for it.
+    b = Channel::new(5);
+    b.set_incarnation(71);
+    let (mut got_a, mut got_b) = (Vec::new(), Vec::new());
+    a.send(msg(3)).unwrap();
+    b.send(msg(101)).unwrap();
+    exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
+
+    assert!(a.take_peer_restart(), "A must notice the new incarnation");
+    assert!(!a.take_peer_restart(), "and report it once");
+    assert!(!b.take_peer_restart(), "a fresh B had no earlier peer to lose");
+    assert_eq!(a.stats.peer_restarts, 1);
+    assert_eq!(got_a, vec![msg(101)], "the new B's stream reaches A from its first frame");
+    assert_eq!(got_b, vec![msg(3)], "A's unacknowledged frame reaches the new B, renumbered");
+    assert!(!a.busy() && !b.busy(), "both windows drained");
+}
+
+#[test]
+fn a_late_copy_of_a_sync_resets_nothing() {
+    let (mut a, mut b) = pair();
+    // Catch B's first words: its `Sync`.
+    b.send(msg(100)).unwrap();
+    let mut sync = Vec::new();
+    b.transmit(1, |f| {
+        sync.extend_from_slice(f);
+        true
+    });
+    let (mut now, mut got_a, mut got_b) = (1, Vec::new(), Vec::new());
+    a.receive(&sync, |m| {
+        got_a.push(m);
+        true
+    });
+    exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
+    for i in 0..3 {
+        b.send(msg(101 + i)).unwrap();
+    }
+    exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
+    // The copy arrives late, after the stream has moved on.
+    a.receive(&sync, |m| {
+        got_a.push(m);
+        true
+    });
+    b.send(msg(104)).unwrap();
+    exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
+
+    assert!(!a.take_peer_restart());
+    assert_eq!(got_a, (100..105).map(msg).collect::<Vec<_>>(), "each message once, in order");
+}
+
+#[test]
+fn no_data_is_taken_before_the_peers_sync() {
+    let (mut a, mut b) = pair();
+    a.send(msg(0)).unwrap();
+    // A data frame as an unsynchronised sender would put it on the wire.
+    let mut frame = [0u8; link_proto::MAX_FRAME_LEN];
+    let n = link_proto::encode_frame(&link_proto::Frame { seq: 0, msg: msg(9) }, &mut frame).unwrap();
+    let mut got_b = Vec::new();
+    b.receive(&frame[..n], |m| {
+        got_b.push(m);
+        true
+    });
+    assert!(got_b.is_empty());
+    assert_eq!(b.stats.discarded, 1);
+    let (mut now, mut got_a) = (0, Vec::new());
+    exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
+    assert_eq!(got_b, vec![msg(0)]);
+}

@@ -352,11 +352,7 @@ impl Board {
     pub fn link_stats(&self) -> ChannelStats {
         let nodes = self.slots.iter().filter_map(|s| s.framed.as_ref().map(|f| f.stats()));
         let host = self.host_channels.iter().map(|c| c.stats);
-        nodes.chain(host).fold(ChannelStats::default(), |a, c| ChannelStats {
-            retransmitted: a.retransmitted + c.retransmitted,
-            corrupted: a.corrupted + c.corrupted,
-            discarded: a.discarded + c.discarded,
-        })
+        nodes.chain(host).sum()
     }
 
     /// Number of nodes.
@@ -514,7 +510,10 @@ impl Board {
             self.slots[i].node = fresh;
         }
         if self.slots[i].framed.is_some() {
-            self.slots[i].framed = Some(Box::new(SimFramed::new(channel_timeout(&self.config))));
+            // A new incarnation, as a board's boot counter would give it.
+            let mut links = Box::new(SimFramed::new(channel_timeout(&self.config)));
+            links.set_incarnation(1);
+            self.slots[i].framed = Some(links);
         }
     }
 

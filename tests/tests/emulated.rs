@@ -63,6 +63,35 @@ fn qemu_array_matches_the_in_memory_board() {
     }
 }
 
+/// One host session on running boards: connect, check, render.
+fn session(ptys: &[String], s: &Scene, opts: &RenderOptions) -> host_tool::render::RenderResult {
+    let partition = even_partition(s, opts).expect("partition");
+    let names = (0..ptys.len()).map(|i| format!("node {i}")).collect();
+    let mut array = SerialArray::open(ptys, names, Duration::from_secs(30)).expect("ptys open");
+    array.connect().expect("every node says hello");
+    check_frame(s, opts, &partition, array.capacity()).expect("fits");
+    render_on(&mut array, s, opts, partition).unwrap_or_else(|e| panic!("render: {e}"))
+}
+
+#[test]
+fn a_new_host_session_starts_the_running_boards_over() {
+    let firmware = firmware();
+    let s = scene();
+    let opts = options(None);
+    let memory = render_sim(&s, &opts).expect("in-memory render");
+    let qemu = QemuArray::launch(opts.array, &firmware).expect("emulators start");
+    // Two host runs against the same boards: the second comes with a new
+    // incarnation on every link, and each node drops the first run's state.
+    for run in 0..2 {
+        let result = session(&qemu.ptys, &s, &opts);
+        assert!(
+            result.frame.sums == memory.frame.sums,
+            "run {run}: pixel sums differ from the in-memory board"
+        );
+        assert_eq!(result.frame.rays_created, memory.frame.rays_created, "run {run}");
+    }
+}
+
 #[test]
 fn a_frozen_node_is_named_after_the_time_out() {
     let firmware = firmware();

@@ -4,7 +4,7 @@
 
 use cortex_m_rt::entry;
 use node_board::board::active as board;
-use node_board::board::wake;
+use node_board::board::{boot_count, wake};
 use node_board::run::{Idle, RESEND_AFTER, run};
 use node_board::wires::Wires;
 use node_board::{BoardLinks, BoardNode};
@@ -20,7 +20,9 @@ fn main() -> ! {
     let mut wires = Wires::new(host, neighbours);
     wake::arm(board::WAKE_PERIOD);
     let idle = Idle { clear: board::clear_wakeups, sleep: wake::sleep };
-    run(NODE.take(), LINKS.take(), &mut wires, &mut clock, idle)
+    let links = LINKS.take();
+    links.set_incarnation(boot_count::next_incarnation());
+    run(NODE.take(), links, &mut wires, &mut clock, idle)
 }
 
 #[panic_handler]

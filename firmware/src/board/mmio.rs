@@ -1,4 +1,5 @@
-//! Memory-mapped registers: the only unsafe code of the firmware.
+//! Memory-mapped registers: with the boot counter, the only unsafe code of
+//! the firmware.
 #![allow(unsafe_code)]
 
 /// One 32-bit peripheral register at a fixed address.

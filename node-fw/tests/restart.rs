@@ -1,0 +1,115 @@
+//! Restarts seen through framed links: a new host session makes a node start
+//! over and say hello again; a restarted neighbour is reported to the host.
+
+use link_proto::{Assign, Capacity, ErrorCode, Hello, Message, PROTOCOL_VERSION, SceneHeader};
+use node_fw::framed::FramedLinks;
+use node_fw::node::Node;
+use node_fw::reliable::Channel;
+use node_fw::{Links, Port};
+
+type TestNode = Node<8, 64, 64, 16>;
+type TestLinks = FramedLinks<4, 4>;
+
+/// A peer of the node on `port`: a channel of its own incarnation.
+fn peer(incarnation: u32) -> Channel<4> {
+    let mut c = Channel::new(5);
+    c.set_incarnation(incarnation);
+    c
+}
+
+/// Polls the node and moves bytes between it and `peer` on `port` for a while;
+/// returns what the peer received.
+fn run(
+    node: &mut TestNode,
+    links: &mut TestLinks,
+    port: Port,
+    peer: &mut Channel<4>,
+    now: &mut u64,
+) -> Vec<Message> {
+    let mut got = Vec::new();
+    for _ in 0..60 {
+        *now += 1;
+        node.poll(*now, links);
+        let mut to_peer = Vec::new();
+        links.transmit(*now, |p, bytes| {
+            if p == port {
+                to_peer.extend_from_slice(bytes);
+            }
+            true
+        });
+        let mut to_node = Vec::new();
+        peer.transmit(*now, |bytes| {
+            to_node.extend_from_slice(bytes);
+            true
+        });
+        links.ingest(port, &to_node);
+        peer.receive(&to_peer, |m| {
+            got.push(m);
+            true
+        });
+    }
+    got
+}
+
+fn hello() -> Message {
+    let capacity = Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 };
+    Message::Hello(Hello { version: PROTOCOL_VERSION, node: u16::MAX, capacity })
+}
+
+fn assign() -> Message {
+    let c = [0, 0, 0];
+    let a = [1, 1, 1];
+    Message::Assign(Assign { array: a, coord: c, lo: c, hi: [4, 4, 4], driving_axis: 0, staggered: false })
+}
+
+fn said_hello(got: &[Message]) -> usize {
+    got.iter().filter(|m| matches!(m, Message::Hello(_))).count()
+}
+
+#[test]
+fn a_new_host_session_makes_the_node_start_over() {
+    let (mut node, mut links, mut now) = (TestNode::new(0), TestLinks::new(5), 0);
+    links.set_incarnation(1);
+    let mut host = peer(500);
+    let header = SceneHeader { grid: [4, 4, 4], ambient: [0; 3], background: [0; 3], max_depth: 1 };
+    for m in [hello(), Message::SceneBegin(header), assign()] {
+        host.send(m).unwrap();
+    }
+    let got = run(&mut node, &mut links, Port::Host, &mut host, &mut now);
+    assert_eq!(said_hello(&got), 1);
+    assert!(node.assignment().is_some());
+
+    // The host program starts again: a new incarnation on the same wire.
+    let mut host = peer(501);
+    host.send(hello()).unwrap();
+    let got = run(&mut node, &mut links, Port::Host, &mut host, &mut now);
+    assert_eq!(said_hello(&got), 1, "the node greets the new session: {got:?}");
+    assert!(node.assignment().is_none(), "and has dropped the old session's assignment");
+    assert!(!node.failed());
+}
+
+#[test]
+fn a_restarted_neighbour_is_reported_to_the_host() {
+    let (mut node, mut links, mut now) = (TestNode::new(0), TestLinks::new(5), 0);
+    links.set_incarnation(1);
+    let mut host = peer(500);
+    host.send(hello()).unwrap();
+    let got = run(&mut node, &mut links, Port::Host, &mut host, &mut now);
+    assert_eq!(said_hello(&got), 1);
+
+    // The +x neighbour talks, restarts, and talks again.
+    for incarnation in [40, 41] {
+        let mut neighbour = peer(incarnation);
+        neighbour.send(Message::Space).unwrap();
+        run(&mut node, &mut links, Port::PosX, &mut neighbour, &mut now);
+    }
+    let got = run(&mut node, &mut links, Port::Host, &mut host, &mut now);
+    let report = got.iter().find_map(|m| match m {
+        Message::Error(e) => Some(*e),
+        _ => None,
+    });
+    let report = report.expect("the node reports the restart");
+    assert_eq!((report.code, report.a), (ErrorCode::PeerRestarted, Port::PosX as u32));
+    assert!(node.failed());
+    assert_eq!(links.peer_restarted(), None, "the restart is reported once");
+}
