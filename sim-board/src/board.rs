@@ -422,7 +422,10 @@ impl Board {
             let in_flight = self.deliver(host, end);
             let quiet =
                 self.slots.iter().all(|s| s.next_arrival().is_none() && !s.channels_busy()) && !host_busy;
-            if !worked && !in_flight && quiet && !host.finished() {
+            // A node whose clock ran past this round (a long poll) has not had
+            // its turn yet: the array is stuck only once no node is ahead.
+            let ahead = self.slots.iter().any(|s| s.next_event().is_some_and(|t| t >= end));
+            if !worked && !in_flight && quiet && !ahead && !host.finished() {
                 let nodes_pending = self.slots.iter().filter(|s| s.node.pending()).count();
                 return Err(SimError::Deadlock { at: end, nodes_pending });
             }

@@ -84,6 +84,23 @@ fn depth_two_queues_never_deadlock_or_drop() {
 }
 
 #[test]
+fn a_node_far_ahead_in_virtual_time_is_waited_for() {
+    // One poll can cost far more than a link's latency (a shaded hit on a real
+    // board costs ~73 000 cycles); the array is not stuck while such a node
+    // has yet to take its turn.
+    let s = scene(0.6, 3);
+    let size = [32, 32];
+    let mut opts = RenderOptions::new([2, 2, 2]);
+    opts.size = size;
+    opts.level_depth = 2;
+    opts.sim.cost.shade = 3_000_000;
+    opts.sim.cost.message = 50_000;
+    let r = render_sim(&s, &opts).unwrap_or_else(|e| panic!("the array finishes: {e}"));
+    assert_eq!(r.frame.rays_created, r.frame.rays_terminated);
+    assert!(r.frame.sums == direct::render(&s, size[0], size[1]).unwrap().sums);
+}
+
+#[test]
 fn agrees_with_the_f64_reference_on_random_scenes() {
     for seed in [1, 2] {
         let s = Scene::random(1000, seed, 1.0, [32; 3]).unwrap();
