@@ -15,7 +15,7 @@ use crate::faults::{FaultRng, Faults};
 use crate::sim_links::{PortState, SimLinks};
 
 /// A node's links when they are byte streams: reliable channels, window 8.
-pub type SimFramed = FramedLinks<8, 16>;
+pub type SimFramed = FramedLinks<8, SIM_INBOX>;
 
 /// The node firmware as the board runs it: 2048 spheres, 32768 sphere
 /// references, 32768 cubes (a 32^3 grid on one node) and 4096 ray slots
@@ -587,9 +587,19 @@ fn progresses(msg: &Message) -> bool {
     !matches!(msg, Message::Load(_))
 }
 
-/// Resend time-out of the reliable channels: a few round trips of the slowest link.
+/// Resend time-out of the reliable channels: a few round trips of the slowest
+/// link, plus the longest a receiver may take before it acknowledges: one
+/// poll that handles a full inbox on every port and does its costliest work.
 fn channel_timeout(config: &SimConfig) -> u64 {
     let frame = link_proto::MAX_FRAME_LEN as u64;
     let trip = |l: &LinkModel| 2 * (l.latency + frame * l.byte);
-    4 * trip(&config.link).max(trip(&config.host_link))
+    let c = &config.cost;
+    let work = c.shade.max(c.create).max(c.trace + WALK_CUBES * c.cube_step);
+    let poll = 7 * SIM_INBOX as u64 * c.message + work;
+    4 * trip(&config.link).max(trip(&config.host_link)) + 2 * poll
 }
+
+/// Messages a simulated node's framed port holds until the node takes them.
+const SIM_INBOX: usize = 16;
+/// Cubes a walk through one subregion may take, for the time-out's bound.
+const WALK_CUBES: u64 = 256;

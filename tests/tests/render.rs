@@ -154,7 +154,7 @@ fn sliding_boundaries_keep_the_image_bit_identical() {
         opts.driving_axis = axis;
         // Short intervals and a high threshold: boundaries move often.
         opts.balance = Some(link_proto::Balance {
-            interval: 20_000,
+            interval: 1_000_000,
             threshold: 50 << 16,
             step: 1,
             policy: link_proto::SlidePolicy::Paper,
@@ -183,7 +183,7 @@ fn a_slide_the_receiver_cannot_hold_is_refused_and_reported() {
     opts.size = size;
     opts.driving_axis = Some(0);
     opts.balance = Some(link_proto::Balance {
-        interval: 5_000,
+        interval: 150_000,
         threshold: 1000 << 16,
         step: 1,
         policy: link_proto::SlidePolicy::Paper,
@@ -234,7 +234,7 @@ fn lossy_links_keep_the_image_bit_identical() {
         if balance {
             opts.driving_axis = Some(2);
             opts.balance = Some(link_proto::Balance {
-                interval: 50_000,
+                interval: 1_000_000,
                 threshold: 3 << 16,
                 step: 1,
                 policy: link_proto::SlidePolicy::Paper,

@@ -30,7 +30,10 @@ fn a_node_of_another_protocol_version_is_refused() {
     let (mut master, slave) = TTYPort::pair().expect("a pty pair");
     let path = slave.name().expect("pty has a name");
     drop(slave);
-    // A node from the future: it says hello with version 99, over and over.
+    // A node from the future: it says hello with version 99, over and over,
+    // until the host is done (the pty lasts as long as this end is open).
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let stop = done.clone();
     let node = std::thread::spawn(move || {
         let hello = Message::Hello(Hello {
             version: 99,
@@ -39,8 +42,8 @@ fn a_node_of_another_protocol_version_is_refused() {
         });
         let mut buf = [0u8; MAX_FRAME_LEN];
         let n = encode_frame(&Frame { seq: 0, msg: hello }, &mut buf).expect("encodes");
-        for _ in 0..50 {
-            if master.write_all(&buf[..n]).is_err() {
+        for _ in 0..1500 {
+            if stop.load(std::sync::atomic::Ordering::Relaxed) || master.write_all(&buf[..n]).is_err() {
                 break;
             }
             std::thread::sleep(Duration::from_millis(20));
@@ -48,6 +51,7 @@ fn a_node_of_another_protocol_version_is_refused() {
     });
     let opts = RenderOptions::new([1, 1, 1]);
     let err = render_serial(&scene(), &opts, &[path], Duration::from_secs(5)).expect_err("refused");
+    done.store(true, std::sync::atomic::Ordering::Relaxed);
     assert_eq!(err.exit_code(), 31, "{err}");
     assert!(err.to_string().contains("version 99"), "{err}");
     node.join().expect("fake node");

@@ -12,8 +12,11 @@ use core::fmt::Write as _;
 
 use cortex_m_rt::entry;
 use embedded_io::Write;
-use link_proto::{MaterialMsg, SphereMsg};
+use link_proto::{CameraMsg, LightMsg, MaterialMsg, Message, RayMsg, SceneHeader, SphereMsg};
 use node_board::board::mps2_an385::{self as board, Timer, Uart};
+use node_fw::camera::{primary_line, primary_ray};
+use node_fw::reliable::Channel;
+use node_fw::shading::{Scene, Surface};
 use node_fw::{DigitalLine, Direction, Grid, Line, Point, Sphere};
 
 /// Nanoseconds (instructions) per timer tick.
@@ -99,8 +102,14 @@ fn cube_walks(timer: &mut Timer, grid: &Grid) -> (u64, u64) {
 
 fn sphere_list(grid: &Grid, rng: &mut Lcg) -> heapless::Vec<Sphere, SPHERES> {
     let mut spheres = heapless::Vec::new();
-    let material =
-        MaterialMsg { color: [0; 3], ambient: 0, diffuse: 0, specular: 0, shininess: 1, reflect: 0 };
+    let material = MaterialMsg {
+        color: [20_000; 3],
+        ambient: 8_000,
+        diffuse: 20_000,
+        specular: 10_000,
+        shininess: 8,
+        reflect: 16_000,
+    };
     for id in 0..SPHERES as u16 {
         let radius = 3277 + rng.below(2 << 16) as i32;
         let center = [0; 3].map(|_| (8 << 16) + rng.below(240 << 16) as i32);
@@ -121,6 +130,112 @@ fn sphere_tests(timer: &mut Timer, spheres: &[Sphere], l: &Line, rounds: u32) ->
         }
     }
     (timer.ticks() - start, tests, hits)
+}
+
+/// A camera 200 cubes in front of a 256-cube grid, looking at its middle.
+fn camera() -> CameraMsg {
+    let one = 1 << 30;
+    CameraMsg {
+        eye: [128 << 16, 128 << 16, -(200 << 16)],
+        corner: [-one / 4, -one / 4, one],
+        du: [one / 64, 0, 0],
+        dv: [0, one / 64, 0],
+    }
+}
+
+/// Creating initial rays: the pixel's line, the ray, and its entry cube.
+fn creations(timer: &mut Timer, grid: &Grid, rays: &mut heapless::Vec<RayMsg, 64>) -> (u64, u64) {
+    let cam = camera();
+    let (mut created, start) = (0u64, timer.ticks());
+    for y in 0..32u16 {
+        for x in 0..32u16 {
+            let Ok(line) = primary_line(&cam, x, y) else { continue };
+            let mut ray = primary_ray(&line, u32::from(y) * 32 + u32::from(x), 1 << 20);
+            if let Some(walk) = DigitalLine::enter(&line, grid) {
+                ray.cell = walk.cell().map(|c| c as u16);
+            }
+            if (x ^ y) % 16 == 0 {
+                let _ = rays.push(ray);
+            }
+            core::hint::black_box(&ray);
+            created += 1;
+        }
+    }
+    (timer.ticks() - start, created)
+}
+
+/// Setting up a walk for a received ray: its line, checked, and the resumed walk.
+fn walk_setups(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
+    let (mut setups, start) = (0u64, timer.ticks());
+    for _ in 0..20 {
+        for ray in rays {
+            let line =
+                Point::from_bits(ray.origin).and_then(|o| Ok(Line::new(o, Direction::from_bits(ray.dir)?)));
+            if let Ok(line) = line {
+                core::hint::black_box(DigitalLine::resume(&line, ray.cell.map(i32::from)).is_ok());
+            }
+            setups += 1;
+        }
+    }
+    (timer.ticks() - start, setups)
+}
+
+/// Shading hits on a mirror sphere lit by one light, as the node does it: the
+/// surface and both children (a shadow ray and a reflection) once to count
+/// the children, and once more to spawn them.
+fn shadings(timer: &mut Timer, grid: &Grid, spheres: &[Sphere]) -> (u64, u64) {
+    let header = SceneHeader { grid: [256; 3], ambient: [3000; 3], background: [0; 3], max_depth: 3 };
+    let lights = [LightMsg { id: 0, position: [10 << 16, 250 << 16, 10 << 16], color: [32768; 3] }];
+    let scene = Scene { header: &header, grid, lights: &lights };
+    let (mut shaded, mut ticks) = (0u64, 0u64);
+    for s in spheres.iter().take(64) {
+        let c = s.center();
+        let Some(l) =
+            line([c[0] - (20 << 16), c[1] - (7 << 16), c[2] + (3 << 16)], [20 << 16, 7 << 16, -3 << 16])
+        else {
+            continue;
+        };
+        let Some(root) = s.intersect(&l) else { continue };
+        let ray = primary_ray(&l, 0, 1 << 20);
+        let start = timer.ticks();
+        for _ in 0..10 {
+            for _pass in 0..2 {
+                if let Some(surface) = Surface::at(&l, root.t, s) {
+                    for k in 0..scene.candidates() {
+                        core::hint::black_box(scene.child(&ray, &l, &surface, s, k));
+                    }
+                }
+            }
+            shaded += 1;
+        }
+        ticks += timer.ticks() - start;
+    }
+    (ticks, shaded)
+}
+
+/// Passing rays through a reliable channel pair, both ends and the acks
+/// (per message and end, bytes on the UART not included).
+fn messages(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
+    let (mut a, mut b) = (Channel::<4>::new(1 << 40), Channel::<4>::new(1 << 40));
+    a.set_incarnation(1);
+    b.set_incarnation(2);
+    let mut wire: heapless::Vec<u8, 1024> = heapless::Vec::new();
+    let mut back: heapless::Vec<u8, 256> = heapless::Vec::new();
+    let (mut passed, start) = (0u64, timer.ticks());
+    for round in 0..40u64 {
+        for ray in rays {
+            let _ = a.send(Message::Ray(*ray));
+            a.transmit(round, |f| wire.extend_from_slice(f).is_ok());
+            b.receive(&wire, |m| core::hint::black_box(matches!(m, Message::Ray(_))));
+            wire.clear();
+            b.transmit(round, |f| back.extend_from_slice(f).is_ok());
+            a.receive(&back, |_| true);
+            back.clear();
+            passed += 1;
+        }
+    }
+    // Two ends handle each message.
+    (timer.ticks() - start, 2 * passed)
 }
 
 #[entry]
@@ -153,6 +268,16 @@ fn main() -> ! {
         }
     }
     let _ = writeln!(out, "kernel sphere_hit {} {tests}", per_unit_x100(ticks, tests));
+
+    let mut rays = heapless::Vec::new();
+    let (ticks, n) = creations(&mut timer, &grid, &mut rays);
+    let _ = writeln!(out, "kernel create {} {n}", per_unit_x100(ticks, n));
+    let (ticks, n) = walk_setups(&mut timer, &rays);
+    let _ = writeln!(out, "kernel trace {} {n}", per_unit_x100(ticks, n));
+    let (ticks, n) = shadings(&mut timer, &grid, &spheres);
+    let _ = writeln!(out, "kernel shade {} {n}", per_unit_x100(ticks, n));
+    let (ticks, n) = messages(&mut timer, &rays);
+    let _ = writeln!(out, "kernel message {} {n}", per_unit_x100(ticks, n));
     let _ = writeln!(out, "kernels done");
     board::exit(true)
 }
