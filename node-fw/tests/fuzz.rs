@@ -13,6 +13,8 @@ struct Script {
     inbox: Vec<(Port, Message)>,
     sent: usize,
     full: bool,
+    /// Peers that restart (a new incarnation on a framed link), one per poll.
+    restarts: Vec<Port>,
 }
 
 impl Links for Script {
@@ -26,6 +28,9 @@ impl Links for Script {
         }
         self.sent += 1;
         Ok(())
+    }
+    fn peer_restarted(&mut self) -> Option<Port> {
+        self.restarts.pop()
     }
 }
 
@@ -130,6 +135,9 @@ fn arb_message() -> impl Strategy<Value = Message> {
         1 => any::<u32>().prop_map(|frame| Message::Finish(Finish { frame })),
         1 => any::<u16>().prop_map(|version| Message::Hello(Hello { version, node: 1, capacity: Fw::capacity() })),
         1 => any::<u16>().prop_map(Message::Ack),
+        1 => any::<u16>().prop_map(Message::Nak),
+        1 => any::<u32>().prop_map(Message::Sync),
+        1 => any::<u32>().prop_map(Message::SyncAck),
     ]
 }
 
@@ -142,11 +150,13 @@ proptest! {
     fn node_survives_arbitrary_message_sequences(
         script in proptest::collection::vec((arb_port(), arb_message()), 1..60),
         full_every in 2usize..6,
+        restarts in proptest::collection::vec((0u64..200, arb_port()), 0..3),
     ) {
         let mut node: Box<Fw> = Box::new(Fw::new(3));
-        let mut links = Script { inbox: script, sent: 0, full: false };
+        let mut links = Script { inbox: script, sent: 0, full: false, restarts: Vec::new() };
         for step in 0..200u64 {
             links.full = (step as usize).is_multiple_of(full_every);
+            links.restarts = restarts.iter().filter(|(at, _)| *at == step).map(|(_, p)| *p).collect();
             let before = links.sent;
             let work = node.poll(step * 100, &mut links);
             // Sends per poll are bounded by what the node can hold, not by input.
@@ -155,6 +165,33 @@ proptest! {
             if links.inbox.is_empty() && !node.pending() {
                 break;
             }
+        }
+    }
+
+    /// Arbitrary well-formed frames into a reliable channel (acks, naks,
+    /// syncs of any incarnation, data out of order): never a panic, and what
+    /// it writes per transmit stays within its window and control frames.
+    #[test]
+    fn channel_survives_arbitrary_frames(
+        frames in proptest::collection::vec((any::<u16>(), arb_message()), 1..80),
+        sends in 0usize..8,
+    ) {
+        let mut channel: node_fw::reliable::Channel<4> = node_fw::reliable::Channel::new(3);
+        channel.set_incarnation(5);
+        for i in 0..sends {
+            let _ = channel.send(Message::Finish(Finish { frame: i as u32 }));
+        }
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        for (now, (seq, msg)) in frames.into_iter().enumerate() {
+            let n = encode_frame(&Frame { seq, msg }, &mut buf).unwrap();
+            channel.receive(&buf[..n], |_| now % 3 != 0);
+            let mut written = 0;
+            channel.transmit(now as u64, |bytes| {
+                written += bytes.len();
+                true
+            });
+            prop_assert!(written <= (4 + 3) * MAX_FRAME_LEN, "wrote {written} bytes at once");
+            let _ = channel.take_peer_restart();
         }
     }
 
@@ -254,13 +291,15 @@ proptest! {
         spheres in proptest::collection::vec(inside_sphere(), 0..12),
         tail in proptest::collection::vec((arb_port(), arb_message()), 0..40),
         full_every in 2usize..6,
+        restarts in proptest::collection::vec((0u64..400, arb_port()), 0..2),
     ) {
         let mut script = valid_setup(&spheres);
         script.extend(tail);
         let mut node: Box<Fw> = Box::new(Fw::new(0));
-        let mut links = Script { inbox: script, sent: 0, full: false };
+        let mut links = Script { inbox: script, sent: 0, full: false, restarts: Vec::new() };
         for step in 0..400u64 {
             links.full = (step as usize).is_multiple_of(full_every);
+            links.restarts = restarts.iter().filter(|(at, _)| *at == step).map(|(_, p)| *p).collect();
             let before = links.sent;
             node.poll(step * 100, &mut links);
             prop_assert!(links.sent - before <= 256 + 64 + 16 + 16);
@@ -289,7 +328,7 @@ fn the_valid_setup_renders() {
         },
     }];
     let mut node: Box<Fw> = Box::new(Fw::new(0));
-    let mut links = Script { inbox: valid_setup(&spheres), sent: 0, full: false };
+    let mut links = Script { inbox: valid_setup(&spheres), sent: 0, full: false, restarts: Vec::new() };
     let mut traces = 0;
     for step in 0..2000u64 {
         traces += node.poll(step * 100, &mut links).traces;
