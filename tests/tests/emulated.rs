@@ -7,6 +7,7 @@
 
 use std::path::PathBuf;
 use std::process::Command;
+use std::sync::{Mutex, MutexGuard};
 use std::time::Duration;
 
 use host_tool::backend::{Backend, render};
@@ -15,6 +16,14 @@ use host_tool::render::{Array, RenderOptions, check_frame, even_partition, rende
 use host_tool::scene::Scene;
 use host_tool::serial::SerialArray;
 use link_proto::{Balance, SlidePolicy};
+
+/// One QEMU array at a time: eight emulators already fill both cores, and a
+/// test's node time-out must not fire because another test's array is busy.
+static ONE_ARRAY: Mutex<()> = Mutex::new(());
+
+fn one_array() -> MutexGuard<'static, ()> {
+    ONE_ARRAY.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
 
 fn firmware() -> PathBuf {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -42,6 +51,7 @@ fn options(balance: Option<Balance>) -> RenderOptions {
 
 #[test]
 fn qemu_array_matches_the_in_memory_board() {
+    let _one = one_array();
     let firmware = firmware();
     let s = scene();
     let sliding = Balance { interval: 500_000, threshold: 1 << 16, step: 1, policy: SlidePolicy::Paper };
@@ -75,6 +85,7 @@ fn session(ptys: &[String], s: &Scene, opts: &RenderOptions) -> host_tool::rende
 
 #[test]
 fn a_new_host_session_starts_the_running_boards_over() {
+    let _one = one_array();
     let firmware = firmware();
     let s = scene();
     let opts = options(None);
@@ -94,6 +105,7 @@ fn a_new_host_session_starts_the_running_boards_over() {
 
 #[test]
 fn a_frozen_node_is_named_after_the_time_out() {
+    let _one = one_array();
     let firmware = firmware();
     let s = scene();
     let opts = options(None);
