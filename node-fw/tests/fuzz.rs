@@ -17,6 +17,11 @@ struct Script {
     restarts: Vec<Port>,
 }
 
+/// The ports whose peers restart at `step`.
+fn due(restarts: &[(u64, Port)], step: u64) -> Vec<Port> {
+    restarts.iter().filter(|(at, _)| *at == step).map(|(_, p)| *p).collect()
+}
+
 impl Links for Script {
     fn recv(&mut self, port: Port) -> Option<Message> {
         let i = self.inbox.iter().position(|(p, _)| *p == port)?;
@@ -156,7 +161,7 @@ proptest! {
         let mut links = Script { inbox: script, sent: 0, full: false, restarts: Vec::new() };
         for step in 0..200u64 {
             links.full = (step as usize).is_multiple_of(full_every);
-            links.restarts = restarts.iter().filter(|(at, _)| *at == step).map(|(_, p)| *p).collect();
+            links.restarts = due(&restarts, step);
             let before = links.sent;
             let work = node.poll(step * 100, &mut links);
             // Sends per poll are bounded by what the node can hold, not by input.
@@ -299,7 +304,7 @@ proptest! {
         let mut links = Script { inbox: script, sent: 0, full: false, restarts: Vec::new() };
         for step in 0..400u64 {
             links.full = (step as usize).is_multiple_of(full_every);
-            links.restarts = restarts.iter().filter(|(at, _)| *at == step).map(|(_, p)| *p).collect();
+            links.restarts = due(&restarts, step);
             let before = links.sent;
             node.poll(step * 100, &mut links);
             prop_assert!(links.sent - before <= 256 + 64 + 16 + 16);

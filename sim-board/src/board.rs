@@ -301,19 +301,8 @@ impl Board {
         let mut slots = Vec::with_capacity(count);
         let mut nodes = build_nodes(0, count).into_iter();
         for id in 0..count {
-            let c = [id % nx, (id / nx) % ny, id / (nx * ny)];
             let n: [Option<usize>; 6] = std::array::from_fn(|p| {
-                let (axis, positive) = (p / 2, p % 2 == 0);
-                let size = [nx, ny, nz][axis];
-                let mut d = c;
-                if positive && c[axis] + 1 < size {
-                    d[axis] += 1;
-                } else if !positive && c[axis] > 0 {
-                    d[axis] -= 1;
-                } else {
-                    return None;
-                }
-                Some(d[0] + nx * (d[1] + ny * d[2]))
+                node_fw::wiring::neighbour_of(id, Port::NEIGHBOURS[p], config.array).map(usize::from)
             });
             let mut wired = [true; 7];
             for (w, nb) in wired.iter_mut().zip(&n) {
