@@ -150,18 +150,23 @@ impl SerialArray {
         }
     }
 
+    /// Fails naming the node silent longest, once that is over the time-out
+    /// (after a stall of the host itself, every node looks silent; the one
+    /// that stopped first is the one to blame).
     fn check_alive(&self) -> Result<(), HostError> {
         let now = self.micros();
-        for (i, link) in self.links.iter().enumerate() {
-            let silent = Duration::from_micros(link.channel.unanswered_for(now));
-            if silent > self.timeout {
-                return Err(HostError::Node(format!(
-                    "{} on {} stopped answering: no acknowledgement for {:.1} s",
-                    self.name(i),
-                    link.name,
-                    silent.as_secs_f64()
-                )));
-            }
+        let silence = |l: &Link| l.channel.unanswered_for(now);
+        let Some((i, link)) = self.links.iter().enumerate().max_by_key(|(_, l)| silence(l)) else {
+            return Ok(());
+        };
+        let silent = Duration::from_micros(silence(link));
+        if silent > self.timeout {
+            return Err(HostError::Node(format!(
+                "{} on {} stopped answering: no acknowledgement for {:.1} s",
+                self.name(i),
+                link.name,
+                silent.as_secs_f64()
+            )));
         }
         Ok(())
     }

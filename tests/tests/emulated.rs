@@ -112,7 +112,9 @@ fn a_frozen_node_is_named_after_the_time_out() {
     let qemu = QemuArray::launch(opts.array, &firmware).expect("emulators start");
     let partition = even_partition(&s, &opts).expect("partition");
     let names = (0..8).map(|i| format!("node {i}")).collect();
-    let mut array = SerialArray::open(&qemu.ptys, names, Duration::from_secs(3)).expect("ptys open");
+    // Long enough that eight emulators starving on two cores are not taken
+    // for dead; far below the test's bound.
+    let mut array = SerialArray::open(&qemu.ptys, names, Duration::from_secs(8)).expect("ptys open");
     array.connect().expect("every node says hello");
     check_frame(&s, &opts, &partition, array.capacity()).expect("fits");
     // Freeze node 5: its pty stays open, but it never answers again.
