@@ -64,3 +64,8 @@ cargo run --release --locked -p host-tool -- report numerics --quick --out targe
 
 step "tests"
 cargo test --workspace --locked
+
+# Release code is what benchmarks and boards run; a miscompile there
+# (rust-lang/rust#158206 once dropped counted sends) shows only at opt-level >= 2.
+step "the node fuzz tests again, optimised as release builds are"
+cargo test --release --locked -p node-fw --test fuzz

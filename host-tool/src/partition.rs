@@ -155,7 +155,9 @@ impl Partition {
             for s in &spheres {
                 let mut n = 0u64;
                 b.for_each_surface_cube(s, |_| n += 1);
-                kept += u64::from(n > 0);
+                if n > 0 {
+                    kept += 1;
+                }
                 refs += n;
             }
             let c = self.coord(id);

@@ -164,6 +164,9 @@ proptest! {
             links.restarts = due(&restarts, step);
             let before = links.sent;
             let work = node.poll(step * 100, &mut links);
+            // The work report counts exactly the messages the links took (a cost
+            // model charges by it).
+            prop_assert_eq!(work.sent as usize, links.sent - before);
             // Sends per poll are bounded by what the node can hold, not by input.
             prop_assert!(links.sent - before <= 256 + 64 + 16 + 16, "sent {} in one poll", links.sent - before);
             prop_assert!(work.traces <= 1 && work.created <= 1);
@@ -306,7 +309,8 @@ proptest! {
             links.full = (step as usize).is_multiple_of(full_every);
             links.restarts = due(&restarts, step);
             let before = links.sent;
-            node.poll(step * 100, &mut links);
+            let work = node.poll(step * 100, &mut links);
+            prop_assert_eq!(work.sent as usize, links.sent - before);
             prop_assert!(links.sent - before <= 256 + 64 + 16 + 16);
             if links.inbox.is_empty() && !node.pending() {
                 break;
