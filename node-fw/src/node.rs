@@ -457,17 +457,37 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         if reply.accepted {
             self.pool.remove(reply.tag);
             self.slot_freed();
+            // The neighbour had room: the next ray held back may have it too.
+            self.retry_refused(port);
         } else if let Some(slot) = self.pool.get_mut(reply.tag) {
             slot.stage = Stage::Refused(port);
         }
     }
 
+    /// Sends again the one ray held back for `port` that the neighbour is
+    /// likeliest to admit: the highest class (a class-`k` ray may take any free
+    /// level up to `k`).
+    ///
+    /// One at a time, not all at once: a `Space` means one slot, so resending
+    /// every held ray mostly bought refusals (each a ray and a reply on the
+    /// link). Nothing waits for ever: while rays are held back for a port,
+    /// either one of them is in flight (its acceptance retries the next) or the
+    /// neighbour has refused us since its last `Space` (its next freed slot
+    /// sends another).
     fn retry_refused(&mut self, port: Port) {
-        for n in 0..self.pool.len() {
-            let Some(i) = self.pool.held_at(n) else { continue };
-            if let Some(slot) = self.pool.get_mut(i).filter(|s| s.stage == Stage::Refused(port)) {
-                slot.stage = Stage::Outbound(port);
-            }
+        let held = self.pool.next_work_where(|s| s.stage == Stage::Refused(port));
+        if let Some(slot) = held.and_then(|i| self.pool.get_mut(i)) {
+            slot.stage = Stage::Outbound(port);
+        }
+    }
+
+    /// How a ray leaves through `port`: behind the rays the neighbour refused,
+    /// if any (it would refuse this one too), else at once.
+    fn leave_by(&self, port: Port) -> Stage {
+        if self.pool.iter().any(|(_, s)| s.stage == Stage::Refused(port)) {
+            Stage::Refused(port)
+        } else {
+            Stage::Outbound(port)
         }
     }
 
@@ -550,7 +570,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 ray.cell = walk.cell().map(|c| c as u16);
                 let driving = self.assign.map_or(0, |a| usize::from(a.driving_axis));
                 match route::toward(&self.region.owned(), walk.cell(), driving) {
-                    Some(port) => Stage::Outbound(port),
+                    Some(port) => self.leave_by(port),
                     None => return self.fail(ErrorCode::BadRay, ray.pixel, 2),
                 }
             }
