@@ -481,10 +481,13 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
     }
 
-    /// How a ray leaves through `port`: behind the rays the neighbour refused,
-    /// if any (it would refuse this one too), else at once.
-    fn leave_by(&self, port: Port) -> Stage {
-        if self.pool.iter().any(|(_, s)| s.stage == Stage::Refused(port)) {
+    /// How a ray of `class` leaves through `port`: behind the rays held back
+    /// for it if one of them has at least its class (the neighbour had no
+    /// slot for that one, so none for this), else at once. A higher class must
+    /// not wait: it may take levels the held ones cannot, and holding it back
+    /// would break the class levels' guarantee of progress.
+    fn leave_by(&self, port: Port, class: u16) -> Stage {
+        if self.pool.iter().any(|(_, s)| s.stage == Stage::Refused(port) && s.ray.class >= class) {
             Stage::Refused(port)
         } else {
             Stage::Outbound(port)
@@ -570,7 +573,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 ray.cell = walk.cell().map(|c| c as u16);
                 let driving = self.assign.map_or(0, |a| usize::from(a.driving_axis));
                 match route::toward(&self.region.owned(), walk.cell(), driving) {
-                    Some(port) => self.leave_by(port),
+                    Some(port) => self.leave_by(port, ray.class),
                     None => return self.fail(ErrorCode::BadRay, ray.pixel, 2),
                 }
             }

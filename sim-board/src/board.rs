@@ -573,7 +573,8 @@ impl Board {
 /// Whether a message to the host shows the frame moving (periodic load
 /// reports do not: they keep coming from a stuck array).
 fn progresses(msg: &Message) -> bool {
-    !matches!(msg, Message::Load(_))
+    // Boundaries may slide for ever while rays are stuck: not progress.
+    !matches!(msg, Message::Load(_) | Message::SlideDone(_) | Message::SlideReply(_))
 }
 
 /// Resend time-out of the reliable channels: a few round trips of the slowest

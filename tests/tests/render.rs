@@ -84,6 +84,29 @@ fn depth_two_queues_never_deadlock_or_drop() {
 }
 
 #[test]
+fn depth_one_queues_with_sliding_boundaries_finish() {
+    // One slot per class level, boundaries moving all the time, rays held
+    // back behind refused ones: once this stalled with every node's pool full
+    // of rays for a neighbour that had room only for higher classes.
+    let slide = |policy| link_proto::Balance { interval: 500_000, threshold: 1 << 16, step: 1, policy };
+    let policies = [link_proto::SlidePolicy::Paper, host_tool::paper::PROPORTIONAL];
+    for (seed, array) in [(7, [2, 2, 2]), (8, [4, 2, 1]), (9, [2, 3, 2])] {
+        let s = Scene::random(24, seed, 1.0, [12, 12, 12]).unwrap();
+        let want = direct::render(&s, 24, 24).unwrap();
+        for balance in [None, Some(slide(policies[0])), Some(slide(policies[1]))] {
+            let mut opts = RenderOptions::new(array);
+            opts.size = [24, 24];
+            opts.level_depth = 1;
+            opts.balance = balance;
+            let r =
+                render_sim(&s, &opts).unwrap_or_else(|e| panic!("seed {seed} {array:?} {balance:?}: {e}"));
+            assert_eq!(r.frame.rays_created, r.frame.rays_terminated);
+            assert!(r.frame.sums == want.sums, "seed {seed} {array:?} {balance:?}: image differs");
+        }
+    }
+}
+
+#[test]
 fn a_node_far_ahead_in_virtual_time_is_waited_for() {
     // One poll can cost far more than a link's latency (a shaded hit on a real
     // board costs ~73 000 cycles); the array is not stuck while such a node
