@@ -109,6 +109,8 @@ pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> 
     spheres_seen: u32,
     render: Option<RenderStart>,
     cursor: u32,
+    /// Step through the tile's pixels (see [`scatter_stride`]).
+    stride: u32,
     pool: RayPool<P>,
     outstanding: [u8; 6],
     replies: [Deque<RayReply, MAX_OUTSTANDING>; 6],
@@ -146,6 +148,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             spheres_seen: 0,
             render: None,
             cursor: 0,
+            stride: 1,
             pool: RayPool::new(),
             outstanding: [0; 6],
             replies: [const { Deque::new() }; 6],
@@ -403,6 +406,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
         self.render = Some(r);
         self.cursor = 0;
+        self.stride = scatter_stride(tile_pixels(&r.tile));
         self.outstanding = [0; 6];
         self.totals = Totals::default();
         let now = self.meter.last();
@@ -663,7 +667,11 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         let Some(r) = self.render else { return };
         let [x0, y0, x1, _] = r.tile.map(u32::from);
         let width = x1.saturating_sub(x0).max(1);
-        let (x, y) = (x0 + self.cursor % width, y0 + self.cursor / width);
+        let pixels = u64::from(tile_pixels(&r.tile).max(1));
+        // The cursor-th pixel of a scattered order (stride coprime to the
+        // pixel count, so every pixel comes once); below u32 as `% pixels`.
+        let k = u32::try_from(u64::from(self.cursor) * u64::from(self.stride) % pixels).unwrap_or(0);
+        let (x, y) = (x0 + k % width, y0 + k / width);
         self.cursor += 1;
         work.created += 1;
         let Ok(line) = primary_line(&r.camera, x as u16, y as u16) else {
@@ -1102,7 +1110,51 @@ fn add3(a: [u32; 3], b: [u32; 3]) -> [u32; 3] {
     [a[0].saturating_add(b[0]), a[1].saturating_add(b[1]), a[2].saturating_add(b[2])]
 }
 
+/// A stride through `n` pixels near `n / phi`, coprime to `n`: creating
+/// initial rays in the order `k * stride mod n` spreads each stretch of time's
+/// rays over the whole tile, so the work's distribution over the scene stays
+/// the same all frame (scanline order sweeps it across the scene, and sliding
+/// boundaries would chase it).
+pub fn scatter_stride(n: u32) -> u32 {
+    let gcd = |mut a: u64, mut b: u64| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    let n64 = u64::from(n.max(1));
+    // 0.6180339887 in Q16 is 40503.
+    let mut s = ((n64 * 40503) >> 16).max(1);
+    while gcd(s, n64) != 1 {
+        s += 1;
+    }
+    // s < n unless n = 1, where any stride gives pixel 0.
+    u32::try_from(s % n64).unwrap_or(1)
+}
+
 fn tile_pixels(tile: &[u16; 4]) -> u32 {
     let [x0, y0, x1, y1] = tile.map(u32::from);
     x1.saturating_sub(x0) * y1.saturating_sub(y0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::scatter_stride;
+
+    #[test]
+    fn the_scattered_order_visits_every_pixel_once() {
+        for n in 1..=3000u32 {
+            let s = u64::from(scatter_stride(n));
+            let mut seen = [false; 3000];
+            for k in 0..u64::from(n) {
+                let p = (k * s % u64::from(n)) as usize;
+                assert!(!seen[p], "n = {n}: pixel {p} twice");
+                seen[p] = true;
+            }
+            if n >= 100 {
+                // Near n / phi: consecutive rays land far apart.
+                assert!((0.6..0.65).contains(&(s as f64 / f64::from(n))), "n = {n}: stride {s}");
+            }
+        }
+    }
 }
