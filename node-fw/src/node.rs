@@ -773,19 +773,27 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 (take.then_some(step), give.then_some(step))
             }
             SlidePolicy::Proportional { gamma, deadband } => {
-                // Smoothed running times, and a boundary that just moved holds
-                // still for two intervals: per-interval times are noisy.
-                let mine = slide::smooth(self.slide.smoothed.lo, own.running);
-                let yours = slide::smooth(self.slide.smoothed.hi, theirs.running);
-                self.slide.smoothed = slide::PerSide { lo: mine, hi: yours };
+                // A boundary that just moved holds still while its slab is in
+                // transit, then decides on both running times averaged over the
+                // intervals since (see `slide::average`): one interval is a
+                // handful of shaded hits, too noisy to act on alone.
                 if self.slide.hold > 0 {
                     self.slide.hold -= 1;
+                    return;
+                }
+                let n = (self.slide.samples + 1).min(slide::AVERAGE_WINDOW);
+                let mine = slide::average(self.slide.smoothed.lo, own.running, n);
+                let yours = slide::average(self.slide.smoothed.hi, theirs.running, n);
+                self.slide.smoothed = slide::PerSide { lo: mine, hi: yours };
+                self.slide.samples = n;
+                if n < slide::MIN_SAMPLES {
                     return;
                 }
                 let take = slide::proportional_shift(mine, yours, own_extent, their_extent, gamma, deadband);
                 let give = slide::proportional_shift(yours, mine, their_extent, own_extent, gamma, deadband);
                 if take.is_some() || give.is_some() {
                     self.slide.hold = 2;
+                    self.slide.samples = 0;
                 }
                 (take, give)
             }

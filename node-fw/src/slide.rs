@@ -99,9 +99,11 @@ pub struct SlideState {
     pub neighbour_load: PerSide<Option<(u32, Load, u16)>>,
     /// This node's latest interval load.
     pub own_load: Option<(u32, Load)>,
-    /// Smoothed running time per interval of this node and of the high-side
-    /// neighbour (proportional policy): `ema += (x - ema) / 4`.
+    /// Average running time per interval of this node and of the high-side
+    /// neighbour since the high boundary last moved (proportional policy).
     pub smoothed: PerSide<u64>,
+    /// Intervals in `smoothed` (capped at [`AVERAGE_WINDOW`]).
+    pub samples: u32,
     /// Intervals the high boundary stays put after it moved (proportional policy).
     pub hold: u32,
     /// Slides committed as receiver this frame.
@@ -120,6 +122,7 @@ impl SlideState {
             neighbour_load: PerSide { lo: None, hi: None },
             own_load: None,
             smoothed: PerSide { lo: 0, hi: 0 },
+            samples: 0,
             hold: 0,
             committed: 0,
             refused: 0,
@@ -162,9 +165,21 @@ pub fn slab(owned: CubeBox, axis: usize, side: Side, boundary: u16) -> CubeBox {
     out
 }
 
-/// One step of the integer exponential moving average with weight 1/4.
-pub fn smooth(ema: u64, x: u64) -> u64 {
-    if ema == 0 { x } else { ema - ema / 4 + x / 4 }
+/// Intervals over which the proportional policy averages running times at most.
+pub const AVERAGE_WINDOW: u32 = 16;
+
+/// Intervals averaged before the proportional policy moves a boundary.
+pub const MIN_SAMPLES: u32 = 2;
+
+/// Adds the `n`-th sample `x` to `mean`: the running mean of the samples
+/// since the boundary moved, which becomes an exponential average of weight
+/// `1 / n` once `n` stops at [`AVERAGE_WINDOW`]. The noise of the estimate
+/// falls as the boundary stays put, so a boundary in the right place stops
+/// moving (no thrashing), while a real shift of the work still shows within
+/// a window.
+pub fn average(mean: u64, x: u64, n: u32) -> u64 {
+    let n = u64::from(n.max(1));
+    if x >= mean { mean + (x - mean) / n } else { mean - (mean - x) / n }
 }
 
 /// Cubes the boundary should move toward the busier node under the
@@ -202,6 +217,18 @@ mod tests {
     use super::*;
 
     const ONE: u32 = 1 << 16;
+
+    #[test]
+    fn average_is_the_running_mean_then_an_exponential_one() {
+        let mut m = 0;
+        for (n, x) in [(1, 100), (2, 200), (3, 600)] {
+            m = average(m, x, n);
+        }
+        assert_eq!(m, 300);
+        // At the window's cap each sample moves the mean by 1/16 of the gap.
+        assert_eq!(average(1600, 0, AVERAGE_WINDOW), 1500);
+        assert_eq!(average(1600, 3200, AVERAGE_WINDOW), 1700);
+    }
 
     #[test]
     fn proportional_shift_follows_the_formula() {
