@@ -95,6 +95,13 @@ struct Run {
     axis: u8,
     /// Sum of the nodes' running time (W).
     busy: u64,
+    /// Share of boundaries that move per interval over the whole frame.
+    churn: f64,
+    /// The same in steady state: the middle half of the frame, after the
+    /// boundaries left the even partition and before the work drains.
+    steady_churn: f64,
+    /// Share of the steady state's moves that undo the boundary's previous move.
+    reversals: f64,
 }
 
 fn run(
@@ -136,9 +143,9 @@ fn run_on(
 ) -> Result<Run, HostError> {
     let mut opts =
         options(scene, side, cfg, initial, !matches!(policy, Policy::Static) || partition.is_some());
+    // About 64 load comparisons over a frame, threshold 3 (loads are running / waiting).
+    let interval = (static_makespan / 64).max(10_000);
     if !matches!(policy, Policy::Static) {
-        // About 64 load comparisons over a frame, threshold 3 (loads are running / waiting).
-        let interval = (static_makespan / 64).max(10_000);
         let slide =
             if matches!(policy, Policy::ProportionalView) { PROPORTIONAL } else { SlidePolicy::Paper };
         opts.balance = Some(Balance { interval, threshold: 3 << 16, step: 1, policy: slide });
@@ -156,13 +163,29 @@ fn run_on(
     let busy: Vec<f64> = r.frame.loads.iter().map(|l| l.map_or(0.0, |l| l.running as f64)).collect();
     let mean = busy.iter().sum::<f64>() / busy.len().max(1) as f64;
     let imbalance = busy.iter().cloned().fold(0.0, f64::max) / mean.max(1.0);
+    let history = crate::history::boundary_history(&r.partition, &r.frame.slides);
+    let t = r.frame.makespan;
+    let per_interval = |moves: usize, span: u64| {
+        moves as f64 / (boundaries(&r.partition) * (span as f64 / interval as f64).max(1.0))
+    };
+    let steady = crate::history::churn(&history, t / 4, t - t / 4);
     Ok(Run {
-        makespan: r.frame.makespan,
+        makespan: t,
         imbalance,
         slides: r.frame.slides.len(),
         axis: r.partition.driving_axis,
         busy: busy.iter().sum::<f64>() as u64,
+        churn: per_interval(r.frame.slides.len(), t),
+        steady_churn: per_interval(steady.moves, t - t / 4 - t / 4),
+        reversals: steady.reversals as f64 / steady.moves.max(1) as f64,
     })
+}
+
+/// Boundaries perpendicular to the driving axis (one per adjacent node pair along it).
+fn boundaries(p: &crate::partition::Partition) -> f64 {
+    let d = usize::from(p.driving_axis);
+    let along = f64::from(p.array[d]);
+    p.array.iter().map(|&n| f64::from(n)).product::<f64>() / along * (along - 1.0)
 }
 
 /// Least-squares slope of log(y) against log(x).
@@ -260,7 +283,7 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
 
     // Figs. 9 and 10.
     let mut fig9 = String::from(
-        "array,spheres,volume_ratio,policy,driving_axis,makespan,ratio_to_static,imbalance,slides,moves_per_boundary_interval\n",
+        "array,spheres,volume_ratio,policy,driving_axis,makespan,ratio_to_static,imbalance,slides,moves_per_boundary_interval,steady_moves_per_boundary_interval,steady_reversals\n",
     );
     let mut panels = Vec::new();
     for &count in &cfg.balance_counts {
@@ -276,7 +299,7 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                 let scene = Scene::random(count, cfg.seed, v, cfg.grid)?;
                 let base = run(&scene, [n; 3], cfg, InitialRays::Parallel, Policy::Static, 0)?;
                 let (st, imb, axis) = (base.makespan, base.imbalance, base.axis);
-                let _ = writeln!(fig9, "{n}x{n}x{n},{count},{v},static,{axis},{st},1.000,{imb:.3},0,0");
+                let _ = writeln!(fig9, "{n}x{n}x{n},{count},{v},static,{axis},{st},1.000,{imb:.3},0,0,0,0");
                 // Oracle: the view axis cut per row where the measured compute cost splits evenly.
                 let costs = crate::direct::render_with_costs(
                     &scene,
@@ -294,7 +317,7 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                 let bound = (base.busy / s_nodes).max(heaviest);
                 let _ = writeln!(
                     fig9,
-                    "{n}x{n}x{n},{count},{v},oracle,{view_ax},{},{:.3},{:.3},0,0",
+                    "{n}x{n}x{n},{count},{v},oracle,{view_ax},{},{:.3},{:.3},0,0,0,0",
                     oracle.makespan,
                     oracle.makespan as f64 / st as f64,
                     oracle.imbalance
@@ -317,20 +340,20 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                     let r = run(&scene, [n; 3], cfg, InitialRays::Parallel, policy, st)?;
                     let (t, imb, slides, axis) = (r.makespan, r.imbalance, r.slides, r.axis);
                     let ratio = t as f64 / st as f64;
-                    // Share of boundaries that move per interval (thrashing when high).
-                    let boundaries = f64::from(n) * f64::from(n) * f64::from(n - 1);
-                    let intervals = (t as f64 / (st / 64).max(10_000) as f64).max(1.0);
-                    let churn = slides as f64 / (boundaries * intervals);
+                    let (churn, steady, back) = (r.churn, r.steady_churn, r.reversals);
                     line.points.push((v, ratio));
                     let _ = writeln!(
                         fig9,
-                        "{n}x{n}x{n},{count},{v},{name},{axis},{t},{ratio:.3},{imb:.3},{slides},{churn:.4}"
+                        "{n}x{n}x{n},{count},{v},{name},{axis},{t},{ratio:.3},{imb:.3},{slides},{churn:.4},{steady:.4},{back:.3}"
                     );
                     let _ = writeln!(
                         report,
                         "Fig. 9/10: {n}^3 nodes, {count} spheres, volume ratio {v}: {name} (axis {axis})/static = {ratio:.3}, \
-                         imbalance {imb:.2}, {slides} slides, {:.1}% of boundaries move per interval, makespan/bound {:.2}",
+                         imbalance {imb:.2}, {slides} slides, boundaries moving per interval {:.1}% (steady state {:.1}%, \
+                         {:.0}% of those reversing), makespan/bound {:.2}",
                         churn * 100.0,
+                        steady * 100.0,
+                        back * 100.0,
                         t as f64 / bound as f64
                     );
                 }
