@@ -52,17 +52,25 @@ impl Partition {
         cost: &[u64],
     ) -> Result<Self, HostError> {
         let mut p = Self::even(grid, array, driving_axis)?;
-        let d = usize::from(driving_axis);
+        let parts = usize::from(array[usize::from(driving_axis)]);
+        let rows = p.row_layers(grid, cost).iter().map(|layer| equal_cost_cuts(layer, parts)).collect();
+        p.row_cuts = Some(rows);
+        Ok(p)
+    }
+
+    /// Per row of nodes along the driving axis (in [`Self::row_of`] order),
+    /// the cost of each layer of cubes across it, from a per-cube cost map.
+    /// Uses the even cuts across the driving axis.
+    pub fn row_layers(&self, grid: [u16; 3], cost: &[u64]) -> Vec<Vec<u64>> {
+        let d = usize::from(self.driving_axis);
         let others: Vec<usize> = (0..3).filter(|&a| a != d).collect();
         let (a0, a1) = (others[0], others[1]);
-        let parts = usize::from(array[d]);
         let mut rows = Vec::new();
-        for r1 in 0..usize::from(array[a1]) {
-            for r0 in 0..usize::from(array[a0]) {
-                // Cost of each layer of this row along the driving axis.
+        for r1 in 0..usize::from(self.array[a1]) {
+            for r0 in 0..usize::from(self.array[a0]) {
                 let mut layer = vec![0u64; usize::from(grid[d])];
-                for c1 in p.cuts[a1][r1]..p.cuts[a1][r1 + 1] {
-                    for c0 in p.cuts[a0][r0]..p.cuts[a0][r0 + 1] {
+                for c1 in self.cuts[a1][r1]..self.cuts[a1][r1 + 1] {
+                    for c0 in self.cuts[a0][r0]..self.cuts[a0][r0 + 1] {
                         for (k, l) in layer.iter_mut().enumerate() {
                             let mut cell = [0usize; 3];
                             cell[d] = k;
@@ -74,11 +82,10 @@ impl Partition {
                         }
                     }
                 }
-                rows.push(equal_cost_cuts(&layer, parts));
+                rows.push(layer);
             }
         }
-        p.row_cuts = Some(rows);
-        Ok(p)
+        rows
     }
 
     /// The row of node coordinate `c` (index over the non-driving axes).
