@@ -215,6 +215,17 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             || [self.slide.outgoing.lo, self.slide.outgoing.hi].iter().flatten().any(|o| !o.done)
     }
 
+    /// Tells the node it sat idle from `now` on (its last poll found nothing
+    /// more to do): the time until the next poll is waiting, not running. A
+    /// board that sleeps until input need not call it, since it polls once
+    /// more before sleeping; a simulator that skips that poll must.
+    pub fn idle(&mut self, now: u64) {
+        if !self.pending() {
+            self.meter.tick(now);
+            self.meter.set_busy(false);
+        }
+    }
+
     /// Handles what has arrived, does one unit of work, and sends what it can.
     /// `now` is the caller's clock; it only splits time into running and waiting.
     pub fn poll<L: Links>(&mut self, now: u64, links: &mut L) -> Work {

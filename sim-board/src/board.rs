@@ -444,6 +444,9 @@ impl Board {
                 return false;
             }
             if !s.node.pending() {
+                // Its last poll (perhaps a round ago) was busy: the time until
+                // the next arrival is waiting, as on a board polling in a loop.
+                s.node.idle(s.clock);
                 s.clock = s.clock.max(s.next_arrival().unwrap_or(s.clock));
             }
             s.run(end, &config)
