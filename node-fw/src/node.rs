@@ -964,6 +964,11 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         for side in [Side::Lo, Side::Hi] {
             let Some(mut out) = self.slide.outgoing[side].filter(|o| !o.done) else { continue };
             let port = Port::toward(d, side == Side::Hi);
+            // Control messages for this neighbour (a reply to its last slab)
+            // go first: the queue may be stuck behind a message to another port.
+            if self.control.iter().any(|(p, _)| *p == port) {
+                continue;
+            }
             if !out.offered {
                 out.offered = send(
                     links,
