@@ -2,6 +2,8 @@
 //! and never grows without bound. Tests run with overflow checks on, so an
 //! arithmetic overflow is a panic here too.
 
+mod common;
+
 use link_proto::*;
 use node_fw::{Links, Node, Port};
 use proptest::prelude::*;
@@ -255,21 +257,12 @@ fn valid_setup(spheres: &[SphereMsg]) -> Vec<(Port, Message)> {
     v.push((Port::Host, Message::SceneEnd(SceneEnd { spheres: n, lights: 1 })));
     v.push((
         Port::Host,
-        Message::RenderStart(RenderStart {
-            frame: 0,
-            size: [8, 8],
-            camera: CameraMsg {
-                eye: [4 << 16, 4 << 16, -(12 << 16)],
-                corner: [-(1 << 28), 1 << 28, 1 << 30],
-                du: [1 << 26, 0, 0],
-                dv: [0, -(1 << 26), 0],
-            },
-            initial: InitialRays::Parallel,
-            tile: [0, 0, 8, 8],
-            credit: 1 << 32,
-            level_depth: 2,
-            balance: Some(Balance { interval: 500, threshold: 1 << 16, step: 1, policy: SlidePolicy::Paper }),
-        }),
+        Message::RenderStart(common::render_start(Balance {
+            interval: 500,
+            threshold: 1 << 16,
+            step: 1,
+            policy: SlidePolicy::Paper,
+        })),
     ));
     v
 }

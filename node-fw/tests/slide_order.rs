@@ -7,6 +7,8 @@
 //! report to a busy host sat at the head of that queue, the reply waited behind
 //! it and the offer went out first (seen on emulated boards).
 
+mod common;
+
 use std::collections::VecDeque;
 
 use link_proto::*;
@@ -54,21 +56,7 @@ fn setup() -> Vec<Message> {
             staggered: false,
         }),
         Message::SceneEnd(SceneEnd { spheres: 0, lights: 0 }),
-        Message::RenderStart(RenderStart {
-            frame: 0,
-            size: [8, 8],
-            camera: CameraMsg {
-                eye: [4 << 16, 4 << 16, -(12 << 16)],
-                corner: [-(1 << 28), 1 << 28, 1 << 30],
-                du: [1 << 26, 0, 0],
-                dv: [0, -(1 << 26), 0],
-            },
-            initial: InitialRays::Parallel,
-            tile: [0, 0, 8, 8],
-            credit: 1 << 32,
-            level_depth: 2,
-            balance: Some(balance),
-        }),
+        Message::RenderStart(common::render_start(balance)),
     ]
 }
 
