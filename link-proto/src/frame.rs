@@ -6,9 +6,11 @@
 //! caught. [`FrameDecoder`] never panics and resynchronises on the next zero byte
 //! after garbage, a truncated frame or an oversize one.
 
+use crate::cobs;
 use crate::message::Frame;
 use crc::{CRC_32_ISCSI, Crc};
 use postcard::experimental::max_size::MaxSize;
+use serde::Deserialize;
 
 /// CRC-32C (Castagnoli): better burst detection than CRC-32/ISO-HDLC at the same cost.
 const CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
@@ -58,7 +60,7 @@ pub fn encode_frame(frame: &Frame, out: &mut [u8]) -> Result<usize, EncodeError>
     let (first, rest) = out.split_first_mut().ok_or(EncodeError::BufferTooSmall)?;
     *first = 0;
     let payload = raw.get(..payload_len).unwrap_or_default();
-    let n = cobs::try_encode(payload, rest).map_err(|_| EncodeError::BufferTooSmall)?;
+    let n = cobs::encode(payload, rest).ok_or(EncodeError::BufferTooSmall)?;
     *rest.get_mut(n).ok_or(EncodeError::BufferTooSmall)? = 0;
     Ok(n + 2)
 }
@@ -85,6 +87,7 @@ impl FrameDecoder {
     }
 
     /// Feeds one byte. Returns a result each time a delimiter closes a non-empty frame.
+    #[inline]
     pub fn push(&mut self, byte: u8) -> Option<Result<Frame, DecodeError>> {
         if byte == 0 {
             return self.close();
@@ -124,7 +127,7 @@ impl FrameDecoder {
 
 /// Decodes one COBS payload (delimiters stripped) in place.
 fn decode_payload(encoded: &mut [u8]) -> Result<Frame, DecodeError> {
-    let n = cobs::decode_in_place(encoded).map_err(|_| DecodeError::Cobs)?;
+    let n = cobs::decode_in_place(encoded).ok_or(DecodeError::Cobs)?;
     let payload = encoded.get(..n).ok_or(DecodeError::Cobs)?;
     let body_len = n.checked_sub(CRC_LEN).ok_or(DecodeError::Short)?;
     let (body, crc) = payload.split_at(body_len);
@@ -133,8 +136,12 @@ fn decode_payload(encoded: &mut [u8]) -> Result<Frame, DecodeError> {
     if CRC.checksum(body) != u32::from_le_bytes(crc_bytes) {
         return Err(DecodeError::Crc);
     }
-    match postcard::take_from_bytes::<Frame>(body) {
-        Ok((frame, [])) => Ok(frame),
+    // Straight from the deserializer: `take_from_bytes` moves the frame
+    // through two more temporaries, each a byte-wise copy on a Cortex-M.
+    let mut de = postcard::Deserializer::from_bytes(body);
+    let frame = Frame::deserialize(&mut de).map_err(|_| DecodeError::Body)?;
+    match de.finalize() {
+        Ok([]) => Ok(frame),
         _ => Err(DecodeError::Body),
     }
 }
