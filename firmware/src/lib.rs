@@ -11,6 +11,7 @@
 pub mod board;
 pub mod capacity;
 pub mod clock;
+pub mod memcpy;
 pub mod run;
 pub mod tx_ring;
 pub mod wires;
