@@ -23,15 +23,15 @@ impl Default for CostModel {
     /// Cortex-M3 instructions of the node firmware, measured on the emulated
     /// mps2-an385 (`scripts/firmware.sh` runs the `kernels` binary under
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
-    /// test) 117.6; a sphere test over a mostly-missing list 224.0; a walk's
-    /// set-up (the received ray's line checked, the walk resumed) 812.9; a
-    /// shaded hit with one light and a mirror 72 863.9 (the surface and both
+    /// test) 117.1; a sphere test over a mostly-missing list 224.0; a walk's
+    /// set-up (the received ray's line checked, the walk resumed) 767.9; a
+    /// shaded hit with one light and a mirror 72 353.5 (the surface and both
     /// children, evaluated once to count and once to spawn them); an initial
-    /// ray (pixel line, ray, entry cube) 12 603.2; one end of a ray message
-    /// through a reliable channel, acks included, 9 325.7 (the UART's bytes
+    /// ray (pixel line, ray, entry cube) 12 510.0; one end of a ray message
+    /// through a reliable channel, acks included, 4 557.8 (the UART's bytes
     /// are the link model's).
     fn default() -> Self {
-        Self { cube_step: 118, sphere_test: 224, trace: 813, shade: 72_864, create: 12_603, message: 9_326 }
+        Self { cube_step: 117, sphere_test: 224, trace: 768, shade: 72_354, create: 12_510, message: 4_558 }
     }
 }
 
