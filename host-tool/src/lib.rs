@@ -7,6 +7,7 @@ pub mod backend;
 pub mod camera;
 pub mod compare;
 pub mod direct;
+pub mod entry;
 pub mod error;
 pub mod frame;
 pub mod history;

@@ -8,10 +8,10 @@ use host_tool::backend::Backend;
 use host_tool::compare::compare;
 use host_tool::error::{HostError, input};
 use host_tool::output::{png, write_atomic};
-use host_tool::render::{RenderOptions, RenderResult, render_sim};
+use host_tool::render::{Initial, RenderOptions, RenderResult, render_sim};
 use host_tool::scene::Scene;
 use host_tool::{direct, reference};
-use link_proto::{Balance, InitialRays, SlidePolicy};
+use link_proto::{Balance, SlidePolicy};
 use serde_json::json;
 
 #[derive(Parser)]
@@ -121,6 +121,9 @@ enum InitialMode {
     Parallel,
     /// The node holding the eye creates all of them.
     Eye,
+    /// The nodes on the face toward the eye create the rays entering through
+    /// their part of it, so rays start where they are traced (beyond the paper).
+    Entry,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -294,8 +297,9 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
     opts.size = args.scene.size;
     opts.level_depth = args.queue_depth;
     opts.initial = match args.initial_rays {
-        InitialMode::Parallel => InitialRays::Parallel,
-        InitialMode::Eye => InitialRays::EyeNode,
+        InitialMode::Parallel => Initial::Parallel,
+        InitialMode::Eye => Initial::EyeNode,
+        InitialMode::Entry => Initial::Entry,
     };
     opts.sim.faults = args.faults;
     opts.sim.restart = args.restart_node;
@@ -506,7 +510,7 @@ fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String
         "size": opts.size,
         "spheres": scene.spheres.len(),
         "lights": scene.lights.len(),
-        "initial_rays": match opts.initial { InitialRays::Parallel => "parallel", InitialRays::EyeNode => "eye" },
+        "initial_rays": opts.initial.name(),
         "queue_depth": opts.level_depth,
         "balance": if opts.balance.is_some() { "slide" } else { "static" },
         "driving_axis": r.partition.driving_axis,

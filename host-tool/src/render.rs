@@ -14,14 +14,47 @@ use node_fw::reliable::ChannelStats;
 use sim_board::{Board, HostEndpoint, RunStats, SimConfig, SimNode};
 
 use crate::camera::PixelBasis;
+use crate::entry::entry_tiles;
 use crate::error::{HostError, input};
 use crate::frame::FrameBuffer;
-use crate::partition::{Partition, tiles};
+use crate::partition::{Partition, tiles, view_axis};
 use crate::scene::Scene;
 
 /// Credit of one initial ray: children split it, so it must survive
 /// `(lights + 2)^max_depth` divisions (at most 10^8 < 2^32).
 pub const PIXEL_CREDIT: u64 = 1 << 32;
+
+/// Who creates the initial rays: a sub-image per node, chosen by the host.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Initial {
+    /// Every node creates the rays of a regular sub-image (the paper's
+    /// parallel mode, Fig. 7 C).
+    Parallel,
+    /// The node holding the eye creates all of them (Fig. 7 B).
+    EyeNode,
+    /// The nodes on the face toward the eye create the rays that enter
+    /// through their part of it ([`crate::entry`]; beyond the paper).
+    Entry,
+}
+
+impl Initial {
+    /// What the nodes are told: they create their tile's rays either way.
+    pub fn wire(self) -> InitialRays {
+        match self {
+            Self::Parallel | Self::Entry => InitialRays::Parallel,
+            Self::EyeNode => InitialRays::EyeNode,
+        }
+    }
+
+    /// The name on the command line and in summaries.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Parallel => "parallel",
+            Self::EyeNode => "eye",
+            Self::Entry => "entry",
+        }
+    }
+}
 
 /// How to render.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -31,7 +64,7 @@ pub struct RenderOptions {
     /// Image width and height.
     pub size: [u16; 2],
     /// Who creates the initial rays.
-    pub initial: InitialRays,
+    pub initial: Initial,
     /// Ray pool slots per class level.
     pub level_depth: u16,
     /// Board costs and links.
@@ -48,7 +81,7 @@ impl RenderOptions {
         Self {
             array,
             size: [256, 256],
-            initial: InitialRays::Parallel,
+            initial: Initial::Parallel,
             level_depth: 4,
             sim: SimConfig::new(array),
             balance: None,
@@ -202,10 +235,14 @@ pub fn render_on(
 /// Sends the scene, assignments and render start to every node.
 fn broadcast(board: &mut impl Array, scene: &Scene, partition: &Partition, opts: &RenderOptions) {
     let [w, h] = opts.size;
-    let camera = PixelBasis::new(&scene.camera(), w, h).msg();
+    let basis = PixelBasis::new(&scene.camera(), w, h);
+    let camera = basis.msg();
     let tiles = match opts.initial {
-        InitialRays::Parallel => tiles(w, h, partition.len()),
-        InitialRays::EyeNode => {
+        Initial::Parallel => tiles(w, h, partition.len()),
+        Initial::Entry => {
+            entry_tiles(&basis, scene.grid, partition, usize::from(view_axis(scene)), opts.size)
+        }
+        Initial::EyeNode => {
             let eye = partition.owner_of(scene.camera().eye, scene.grid);
             (0..partition.len()).map(|i| if i == eye { [0, 0, w, h] } else { [0; 4] }).collect()
         }
@@ -231,7 +268,7 @@ fn broadcast(board: &mut impl Array, scene: &Scene, partition: &Partition, opts:
                 frame: 0,
                 size: [w, h],
                 camera,
-                initial: opts.initial,
+                initial: opts.initial.wire(),
                 tile: *tile,
                 credit: PIXEL_CREDIT,
                 level_depth: opts.level_depth,

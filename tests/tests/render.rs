@@ -3,10 +3,9 @@
 
 use host_tool::compare::compare;
 use host_tool::frame::to_srgb8;
-use host_tool::render::{RenderOptions, render_sim};
+use host_tool::render::{Initial, RenderOptions, render_sim};
 use host_tool::scene::{Light, Scene, SphereDesc};
 use host_tool::{direct, reference};
-use link_proto::InitialRays;
 
 /// A small scene with mirrors, two lights and spheres across node boundaries.
 fn scene(reflect: f64, max_depth: u8) -> Scene {
@@ -32,12 +31,7 @@ fn scene(reflect: f64, max_depth: u8) -> Scene {
     s
 }
 
-fn render(
-    s: &Scene,
-    array: [u16; 3],
-    initial: InitialRays,
-    size: [u16; 2],
-) -> host_tool::render::RenderResult {
+fn render(s: &Scene, array: [u16; 3], initial: Initial, size: [u16; 2]) -> host_tool::render::RenderResult {
     let mut opts = RenderOptions::new(array);
     opts.size = size;
     opts.initial = initial;
@@ -54,7 +48,7 @@ fn image_is_bit_identical_across_arrays_and_initial_ray_modes() {
     let want = direct::render(&s, size[0], size[1]).unwrap();
     let mut rays = None;
     for array in [[1, 1, 1], [2, 2, 2], [4, 4, 4], [8, 8, 8], [3, 2, 5]] {
-        for initial in [InitialRays::Parallel, InitialRays::EyeNode] {
+        for initial in [Initial::Parallel, Initial::EyeNode, Initial::Entry] {
             let r = render(&s, array, initial, size);
             assert!(r.frame.sums == want.sums, "{array:?} {initial:?}: image differs from the single loop");
             // The same ray tree everywhere.
@@ -166,10 +160,11 @@ fn sliding_boundaries_keep_the_image_bit_identical() {
     let size = [40, 32];
     let want = direct::render(&s, size[0], size[1]).unwrap();
     for (array, initial, axis) in [
-        ([4, 4, 4], InitialRays::Parallel, None),
-        ([3, 2, 5], InitialRays::EyeNode, Some(2)),
-        ([2, 2, 2], InitialRays::Parallel, Some(1)),
-        ([8, 1, 1], InitialRays::Parallel, Some(0)),
+        ([4, 4, 4], Initial::Parallel, None),
+        ([3, 2, 5], Initial::EyeNode, Some(2)),
+        ([2, 2, 2], Initial::Parallel, Some(1)),
+        ([8, 1, 1], Initial::Parallel, Some(0)),
+        ([2, 3, 4], Initial::Entry, Some(2)),
     ] {
         let mut opts = RenderOptions::new(array);
         opts.size = size;

@@ -1,0 +1,230 @@
+//! Entry tiles: the sub-images that let initial rays start where they enter.
+//!
+//! In the paper's parallel mode every node creates the rays of a regular
+//! sub-image and passes each one across the array to the node where it
+//! enters the scene, so every initial ray costs a message per hop and the
+//! nodes on the face toward the eye receive all of them. Beyond the paper,
+//! the host can instead give each node on that face the sub-image that
+//! enters through its part of the face: rays then start (nearly always) on
+//! the node that traces them first. Which node creates a ray changes nothing
+//! in the image; a ray that enters elsewhere (through a side face, or across
+//! a tile's rounded edge) is passed on as in the parallel mode.
+
+use crate::camera::PixelBasis;
+use crate::partition::{Partition, tiles};
+
+/// A tile `[x0, y0, x1, y1)` per node for a `size` image: the nodes whose
+/// coordinate along `view_axis` is on the eye's side get the pixels whose
+/// rays enter through their part of the grid's face, the others none. The
+/// tiles cover every pixel once: a column's tile is that of the rays of
+/// most of the column, and pixels whose rays miss the grid go with their
+/// nearest neighbours. With the eye inside the grid, or no ray entering it,
+/// the regular tiles of the parallel mode are returned.
+pub fn entry_tiles(
+    basis: &PixelBasis,
+    grid: [u16; 3],
+    partition: &Partition,
+    view_axis: usize,
+    size: [u16; 2],
+) -> Vec<[u16; 4]> {
+    let regular = || tiles(size[0], size[1], partition.len());
+    let g = grid.map(f64::from);
+    if (0..3).all(|a| basis.eye[a] > 0.0 && basis.eye[a] < g[a]) {
+        return regular();
+    }
+    let [w, h] = size.map(usize::from);
+    // The array coordinate of each pixel's entry node, or None for a miss.
+    let coords: Vec<Option<[u16; 3]>> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            let d = std::array::from_fn(|a| basis.corner[a] + x * basis.du[a] + y * basis.dv[a]);
+            entry_point(basis.eye, d, g).map(|p| partition.coord(partition.owner_of(p, grid)))
+        })
+        .collect();
+    if coords.iter().all(Option::is_none) {
+        return regular();
+    }
+    let others: Vec<usize> = (0..3).filter(|&a| a != view_axis).collect();
+    let (across, down) = image_axes(&coords, w, others[0], others[1]);
+    let at = |x: usize, y: usize| coords.get(y * w + x).copied().flatten();
+    let cols = bands(w, partition.array[across], |x| (0..h).filter_map(move |y| at(x, y)).map(|c| c[across]));
+    let rows = bands(h, partition.array[down], |y| (0..w).filter_map(move |x| at(x, y)).map(|c| c[down]));
+    let front = if basis.eye[view_axis] < g[view_axis] / 2.0 { 0 } else { partition.array[view_axis] - 1 };
+    (0..partition.len())
+        .map(|id| {
+            let c = partition.coord(id);
+            let (col, row) = (cols[usize::from(c[across])], rows[usize::from(c[down])]);
+            if c[view_axis] != front || col.0 == col.1 || row.0 == row.1 {
+                return [0; 4];
+            }
+            [col.0, row.0, col.1, row.1].map(|v| v as u16)
+        })
+        .collect()
+}
+
+/// Where the ray from `eye` along `d` enters the box `[0, g]`, nudged inside.
+fn entry_point(eye: [f64; 3], d: [f64; 3], g: [f64; 3]) -> Option<[f64; 3]> {
+    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+    for a in 0..3 {
+        if d[a] == 0.0 {
+            if eye[a] < 0.0 || eye[a] > g[a] {
+                return None;
+            }
+            continue;
+        }
+        let (ta, tb) = (-eye[a] / d[a], (g[a] - eye[a]) / d[a]);
+        t0 = t0.max(ta.min(tb));
+        t1 = t1.min(ta.max(tb));
+    }
+    if t0 >= t1 {
+        return None;
+    }
+    let t = t0 + (t1 - t0).min(1e-3) / 2.0;
+    Some(std::array::from_fn(|k| eye[k] + t * d[k]))
+}
+
+/// Which of the array axes `a` and `b` runs across the image (its coordinate
+/// changes more often from a pixel to the next one in a row), and which down.
+fn image_axes(coords: &[Option<[u16; 3]>], w: usize, a: usize, b: usize) -> (usize, usize) {
+    let (mut across, mut down) = ([0u64; 2], [0u64; 2]);
+    for (i, c) in coords.iter().enumerate() {
+        let Some(c) = c else { continue };
+        let right = if (i + 1) % w != 0 { coords.get(i + 1).copied().flatten() } else { None };
+        let below = coords.get(i + w).copied().flatten();
+        for (k, axis) in [a, b].into_iter().enumerate() {
+            across[k] += right.is_some_and(|r| r[axis] != c[axis]) as u64;
+            down[k] += below.is_some_and(|r| r[axis] != c[axis]) as u64;
+        }
+    }
+    // a across and b down, or the other way round: whichever explains more changes.
+    if across[0] + down[1] >= across[1] + down[0] { (a, b) } else { (b, a) }
+}
+
+/// Splits `len` image lines (columns or rows) into `n` contiguous bands, one
+/// per array coordinate: a line goes to the median coordinate of its rays
+/// (`line(i)`), lines without rays to their neighbours' band, and the
+/// sequence is made monotone so that every band is one interval.
+fn bands<I: Iterator<Item = u16>>(len: usize, n: u16, line: impl Fn(usize) -> I) -> Vec<(usize, usize)> {
+    let median = |i: usize| {
+        let mut v: Vec<u16> = line(i).collect();
+        v.sort_unstable();
+        v.get(v.len() / 2).copied()
+    };
+    let mut class: Vec<Option<u16>> = (0..len).map(median).collect();
+    // Lines that see no grid take the class of the nearest line before, or after.
+    let mut last = None;
+    for c in class.iter_mut() {
+        *c = c.or(last);
+        last = *c;
+    }
+    let mut next = None;
+    for c in class.iter_mut().rev() {
+        *c = c.or(next);
+        next = *c;
+    }
+    let mut class: Vec<u16> = class.into_iter().map(|c| c.unwrap_or(0)).collect();
+    let falling = class.first() > class.last();
+    if falling {
+        class.reverse();
+    }
+    // Monotone: a line never goes back to an earlier band.
+    let mut top = 0;
+    for c in class.iter_mut() {
+        top = top.max(*c);
+        *c = top;
+    }
+    let mut bands = vec![(0usize, 0usize); usize::from(n)];
+    for k in 0..n {
+        let start = class.iter().position(|&c| c >= k).unwrap_or(len);
+        let end = class.iter().position(|&c| c > k).unwrap_or(len);
+        bands[usize::from(k)] = (start, end);
+    }
+    if falling {
+        for b in bands.iter_mut() {
+            *b = (len - b.1, len - b.0);
+        }
+    }
+    bands
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Scene;
+
+    /// Every pixel in exactly one tile.
+    fn covers_once(tiles: &[[u16; 4]], size: [u16; 2]) -> bool {
+        let mut hits = vec![0u8; usize::from(size[0]) * usize::from(size[1])];
+        for t in tiles {
+            for y in t[1]..t[3] {
+                for x in t[0]..t[2] {
+                    hits[usize::from(y) * usize::from(size[0]) + usize::from(x)] += 1;
+                }
+            }
+        }
+        hits.iter().all(|&n| n == 1)
+    }
+
+    #[test]
+    fn front_nodes_share_the_image_and_rays_start_on_their_entry_node() {
+        let scene = Scene::random(10, 1, 1.0, [16; 3]).unwrap();
+        let size = [64, 48];
+        let basis = PixelBasis::new(&scene.camera(), size[0], size[1]);
+        for array in [[4, 4, 4], [2, 3, 1], [1, 1, 5], [3, 2, 2]] {
+            let p = Partition::even(scene.grid, array, 2).unwrap();
+            let t = entry_tiles(&basis, scene.grid, &p, 2, size);
+            assert!(covers_once(&t, size), "{array:?}: {t:?}");
+            // Only the front layer (z = 0, the eye is at negative z) creates rays.
+            for (id, tile) in t.iter().enumerate() {
+                if p.coord(id)[2] != 0 {
+                    assert_eq!(*tile, [0; 4], "{array:?}: node {id}");
+                }
+            }
+            // Independent check: most rays that enter the grid are created by
+            // the node whose box they enter.
+            let g = scene.grid.map(f64::from);
+            let (mut entering, mut at_home) = (0, 0);
+            for (id, tile) in t.iter().enumerate() {
+                for y in tile[1]..tile[3] {
+                    for x in tile[0]..tile[2] {
+                        let d = std::array::from_fn(|a| {
+                            basis.corner[a] + f64::from(x) * basis.du[a] + f64::from(y) * basis.dv[a]
+                        });
+                        if let Some(e) = entry_point(basis.eye, d, g) {
+                            entering += 1;
+                            at_home += usize::from(p.owner_of(e, scene.grid) == id);
+                        }
+                    }
+                }
+            }
+            assert!(entering > 0);
+            assert!(at_home * 100 >= entering * 95, "{array:?}: {at_home} of {entering} at home");
+        }
+    }
+
+    #[test]
+    fn eye_inside_the_grid_falls_back_to_regular_tiles() {
+        let mut scene = Scene::random(10, 1, 1.0, [16; 3]).unwrap();
+        let mut cam = scene.camera();
+        cam.eye = [8.0, 8.0, 1.0];
+        cam.look_at = [8.0, 8.0, 12.0];
+        scene.camera = Some(cam);
+        let size = [32, 32];
+        let basis = PixelBasis::new(&scene.camera(), size[0], size[1]);
+        let p = Partition::even(scene.grid, [2, 2, 2], 2).unwrap();
+        assert_eq!(entry_tiles(&basis, scene.grid, &p, 2, size), tiles(32, 32, 8));
+    }
+
+    #[test]
+    fn bands_are_intervals_in_either_direction() {
+        let rising = [None, Some(0), Some(0), Some(1), Some(0), Some(2), None];
+        let b = bands(7, 3, |i| rising[i].into_iter());
+        assert_eq!(b, vec![(0, 3), (3, 5), (5, 7)]);
+        let falling = [Some(2), Some(2), Some(1), None, Some(0)];
+        let b = bands(5, 3, |i| falling[i].into_iter());
+        assert_eq!(b, vec![(4, 5), (2, 4), (0, 2)]);
+        // A coordinate no line sees gets an empty band.
+        let gap = [Some(0), Some(2)];
+        assert_eq!(bands(2, 3, |i| gap[i].into_iter()), vec![(0, 1), (1, 1), (1, 2)]);
+    }
+}
