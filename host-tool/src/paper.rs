@@ -2,22 +2,24 @@
 //!
 //! - Fig. 7: time against the number of subregions S, for A (one node holding
 //!   the whole grid), B (the array, initial rays from the eye's node) and C
-//!   (the array, initial rays in parallel).
+//!   (the array, initial rays in parallel); beyond the paper, D (the array,
+//!   initial rays created on the node where they enter, [`crate::entry`]).
 //! - Fig. 8: C for several sphere counts.
 //! - Figs. 9 and 10: sliding against the static partition over the volume
-//!   ratio of the region the spheres are confined to, 1000 and 2000 spheres.
+//!   ratio of the region the spheres are confined to, 1000 and 2000 spheres;
+//!   the same with entry tiles.
 //!
 //! Times are makespans in virtual cycles of the board's cost model.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
-use link_proto::{Balance, InitialRays, SlidePolicy};
+use link_proto::{Balance, SlidePolicy};
 
 use crate::error::HostError;
 use crate::output::write_atomic;
 use crate::plot::{Chart, Series, png};
-use crate::render::{RenderOptions, render_sim};
+use crate::render::{Initial, RenderOptions, render_sim};
 use crate::scene::Scene;
 
 /// Experiment sizes.
@@ -108,7 +110,7 @@ fn run(
     scene: &Scene,
     side: [u16; 3],
     cfg: &PaperConfig,
-    initial: InitialRays,
+    initial: Initial,
     policy: Policy,
     static_makespan: u64,
 ) -> Result<Run, HostError> {
@@ -119,7 +121,7 @@ fn options(
     scene: &Scene,
     side: [u16; 3],
     cfg: &PaperConfig,
-    initial: InitialRays,
+    initial: Initial,
     sliding: bool,
 ) -> RenderOptions {
     let mut opts = RenderOptions::new(side);
@@ -136,7 +138,7 @@ fn run_on(
     scene: &Scene,
     side: [u16; 3],
     cfg: &PaperConfig,
-    initial: InitialRays,
+    initial: Initial,
     policy: Policy,
     static_makespan: u64,
     partition: Option<crate::partition::Partition>,
@@ -209,7 +211,7 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
     // Figs. 7 and 8.
     let mut fig7 = String::from("S,mode,spheres,makespan,imbalance\n");
     let mut fig8 = String::from("S,spheres,makespan\n");
-    let mut series7: Vec<Series> = ["A one node", "B eye node", "C parallel"]
+    let mut series7: Vec<Series> = ["A one node", "B eye node", "C parallel", "D entry (beyond the paper)"]
         .iter()
         .map(|n| Series { name: n.to_string(), points: Vec::new(), markers: true })
         .collect();
@@ -217,18 +219,22 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
     for &count in &cfg.counts {
         let scene = Scene::random(count, cfg.seed, 1.0, cfg.grid)?;
         let mut s8 = Series { name: format!("C, {count} spheres"), points: Vec::new(), markers: true };
-        let single = run(&scene, [1; 3], cfg, InitialRays::Parallel, Policy::Static, 0)?.makespan;
+        let single = run(&scene, [1; 3], cfg, Initial::Parallel, Policy::Static, 0)?.makespan;
         for &n in &cfg.sides {
             let s = u32::from(n).pow(3) as f64;
-            let rc = run(&scene, [n; 3], cfg, InitialRays::Parallel, Policy::Static, 0)?;
+            let rc = run(&scene, [n; 3], cfg, Initial::Parallel, Policy::Static, 0)?;
             let (c, imb_c) = (rc.makespan, rc.imbalance);
             s8.points.push((s, c as f64));
             let _ = writeln!(fig8, "{s},{count},{c}");
             if count == 1000 {
-                let rb = run(&scene, [n; 3], cfg, InitialRays::EyeNode, Policy::Static, 0)?;
+                let rb = run(&scene, [n; 3], cfg, Initial::EyeNode, Policy::Static, 0)?;
                 let (b, imb_b) = (rb.makespan, rb.imbalance);
+                let rd = run(&scene, [n; 3], cfg, Initial::Entry, Policy::Static, 0)?;
+                let (d, imb_d) = (rd.makespan, rd.imbalance);
                 for (i, (t, imb, mode)) in
-                    [(single, 1.0, "A"), (b, imb_b, "B"), (c, imb_c, "C")].into_iter().enumerate()
+                    [(single, 1.0, "A"), (b, imb_b, "B"), (c, imb_c, "C"), (d, imb_d, "D")]
+                        .into_iter()
+                        .enumerate()
                 {
                     series7[i].points.push((s, t as f64));
                     let _ = writeln!(fig7, "{s},{mode},{count},{t},{imb:.3}");
@@ -253,10 +259,16 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
         report,
         "  here the unit-cube grid already subdivides the space on one node, so A does not change with S."
     );
-    let _ = writeln!(report, "Honest efficiency E = T(one node, same grid) / (S T(S)) for C, 1000 spheres:");
-    if let (Some(one), Some(c)) = (series7[0].points.first(), series7.get(2)) {
-        for &(s, t) in &c.points {
-            let _ = writeln!(report, "  S = {s}: E = {:.3}", one.1 / (s * t));
+    let _ =
+        writeln!(report, "Honest efficiency E = T(one node, same grid) / (S T(S)), 1000 spheres, static:");
+    if let (Some(one), Some(c), Some(d)) = (series7[0].points.first(), series7.get(2), series7.get(3)) {
+        for (&(s, tc), &(_, td)) in c.points.iter().zip(&d.points) {
+            let _ = writeln!(
+                report,
+                "  S = {s}: E = {:.3} (C parallel), {:.3} (D entry)",
+                one.1 / (s * tc),
+                one.1 / (s * td)
+            );
         }
     }
     let _ = writeln!(report, "Fig. 8: slope of C against S per sphere count");
@@ -295,9 +307,14 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                 Series { name: format!("{n}x{n}x{n}, view axis"), points: Vec::new(), markers: true };
             let mut prop =
                 Series { name: format!("{n}x{n}x{n}, proportional"), points: Vec::new(), markers: true };
+            let mut entry = Series {
+                name: format!("{n}x{n}x{n}, entry tiles, proportional"),
+                points: Vec::new(),
+                markers: true,
+            };
             for &v in &cfg.ratios {
                 let scene = Scene::random(count, cfg.seed, v, cfg.grid)?;
-                let base = run(&scene, [n; 3], cfg, InitialRays::Parallel, Policy::Static, 0)?;
+                let base = run(&scene, [n; 3], cfg, Initial::Parallel, Policy::Static, 0)?;
                 let (st, imb, axis) = (base.makespan, base.imbalance, base.axis);
                 let _ = writeln!(fig9, "{n}x{n}x{n},{count},{v},static,{axis},{st},1.000,{imb:.3},0,0,0,0");
                 // Oracle: the view axis cut per row where the measured compute cost splits evenly.
@@ -311,7 +328,7 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                 let oracle_p =
                     crate::partition::Partition::oracle(scene.grid, [n; 3], view_ax, &costs.cost_map)?;
                 let oracle =
-                    run_on(&scene, [n; 3], cfg, InitialRays::Parallel, Policy::Static, st, Some(oracle_p))?;
+                    run_on(&scene, [n; 3], cfg, Initial::Parallel, Policy::Static, st, Some(oracle_p))?;
                 // A strict lower bound: the compute work is the same whatever
                 // the partition (every cube's walks, tests and shading, and
                 // every pixel's initial ray); messages only add to it.
@@ -355,12 +372,36 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                     oracle.imbalance,
                     oracle.makespan as f64 / bound(&oracle)
                 );
-                for (policy, name, line) in [
-                    (Policy::Paper, "slide", &mut paper),
-                    (Policy::PaperView, "slide-view", &mut view),
-                    (Policy::ProportionalView, "proportional-view", &mut prop),
+                // Beyond the paper: initial rays created where they enter.
+                // Ratios stay against the paper's static run (parallel tiles).
+                let base_d = run(&scene, [n; 3], cfg, Initial::Entry, Policy::Static, 0)?;
+                let st_d = base_d.makespan;
+                let _ = writeln!(
+                    fig9,
+                    "{n}x{n}x{n},{count},{v},static-entry,{},{st_d},{:.3},{:.3},0,0,0,0",
+                    base_d.axis,
+                    st_d as f64 / st as f64,
+                    base_d.imbalance
+                );
+                let _ = writeln!(
+                    report,
+                    "Fig. 9/10: {n}^3 nodes, {count} spheres, volume ratio {v}: static-entry/static = {:.3}, \
+                     imbalance {:.2}, makespan/bound {:.2}",
+                    st_d as f64 / st as f64,
+                    base_d.imbalance,
+                    st_d as f64 / bound(&base_d)
+                );
+                let mut unplotted = Series { name: String::new(), points: Vec::new(), markers: false };
+                for (initial, policy, name, line) in [
+                    (Initial::Parallel, Policy::Paper, "slide", &mut paper),
+                    (Initial::Parallel, Policy::PaperView, "slide-view", &mut view),
+                    (Initial::Parallel, Policy::ProportionalView, "proportional-view", &mut prop),
+                    (Initial::Entry, Policy::PaperView, "slide-view-entry", &mut unplotted),
+                    (Initial::Entry, Policy::ProportionalView, "proportional-view-entry", &mut entry),
                 ] {
-                    let r = run(&scene, [n; 3], cfg, InitialRays::Parallel, policy, st)?;
+                    // The interval is a 64th of the matching static run.
+                    let own_static = if initial == Initial::Entry { st_d } else { st };
+                    let r = run(&scene, [n; 3], cfg, initial, policy, own_static)?;
                     let (t, imb, slides, axis) = (r.makespan, r.imbalance, r.slides, r.axis);
                     let ratio = t as f64 / st as f64;
                     let (churn, steady, back) = (r.churn, r.steady_churn, r.reversals);
@@ -371,9 +412,10 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                     );
                     let _ = writeln!(
                         report,
-                        "Fig. 9/10: {n}^3 nodes, {count} spheres, volume ratio {v}: {name} (axis {axis})/static = {ratio:.3}, \
-                         imbalance {imb:.2}, {slides} slides, boundaries moving per interval {:.1}% (steady state {:.1}%, \
-                         {:.0}% of those reversing), makespan/bound {:.2}",
+                        "Fig. 9/10: {n}^3 nodes, {count} spheres, volume ratio {v}: {name} (axis {axis})/static = {ratio:.3} \
+                         (/its own static {:.3}), imbalance {imb:.2}, {slides} slides, boundaries moving per interval \
+                         {:.1}% (steady state {:.1}%, {:.0}% of those reversing), makespan/bound {:.2}",
+                        t as f64 / own_static as f64,
                         churn * 100.0,
                         steady * 100.0,
                         back * 100.0,
@@ -384,6 +426,7 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
             series.push(paper);
             series.push(view);
             series.push(prop);
+            series.push(entry);
         }
         series.push(Series {
             name: "paper: 3/4 at 1, 1/5 at 1/4".into(),
