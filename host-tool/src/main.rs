@@ -117,7 +117,8 @@ struct SceneArgs {
 
 #[derive(Clone, Copy, ValueEnum)]
 enum InitialMode {
-    /// Every node creates the rays of its sub-image.
+    /// Every node creates the rays of a regular sub-image and passes each to
+    /// the node where it enters (the paper's parallel mode).
     Parallel,
     /// The node holding the eye creates all of them.
     Eye,
@@ -217,7 +218,7 @@ struct RenderArgs {
     #[arg(long, value_name = "XxYxZ", value_parser = parse_triple, default_value = "4x4x4")]
     array: [u16; 3],
     /// Who creates the initial rays.
-    #[arg(long, value_enum, default_value = "parallel")]
+    #[arg(long, value_enum, default_value = "entry")]
     initial_rays: InitialMode,
     /// Ray pool slots per class level in each node (back-pressure depth).
     #[arg(long, value_name = "N", default_value_t = 4)]

@@ -76,12 +76,13 @@ pub struct RenderOptions {
 }
 
 impl RenderOptions {
-    /// Defaults for an array: 256 x 256 pixels, parallel initial rays, depth 4.
+    /// Defaults for an array: 256 x 256 pixels, initial rays created where they
+    /// enter, depth 4.
     pub fn new(array: [u16; 3]) -> Self {
         Self {
             array,
             size: [256, 256],
-            initial: Initial::Parallel,
+            initial: Initial::Entry,
             level_depth: 4,
             sim: SimConfig::new(array),
             balance: None,
