@@ -61,6 +61,10 @@ pub struct Work {
     pub received: u32,
     /// Messages sent.
     pub sent: u32,
+    /// Of the messages received, rays (long messages; the rest are short).
+    pub rays_received: u32,
+    /// Of the messages sent, rays.
+    pub rays_sent: u32,
 }
 
 impl Work {
@@ -252,6 +256,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         for port in Port::ALL {
             while let Some(msg) = links.recv(port) {
                 work.received += 1;
+                if matches!(msg, Message::Ray(_)) {
+                    work.rays_received += 1;
+                }
                 if self.phase != Phase::Failed {
                     self.handle(port, msg);
                 }
@@ -1006,6 +1013,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
 
     fn transmit<L: Links>(&mut self, links: &mut L, work: &mut Work) {
         let mut send = |links: &mut L, port: Port, msg: Message| {
+            let ray = matches!(msg, Message::Ray(_));
             let ok = links.try_send(port, msg).is_ok();
             // Not `work.sent += u32::from(ok)`: rustc 1.95 at opt-level >= 2
             // drops the increment when the same bool is branched on after
@@ -1013,6 +1021,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             // release builds undercounted sends. The fuzz tests check the count.
             if ok {
                 work.sent += 1;
+                if ray {
+                    work.rays_sent += 1;
+                }
             }
             ok
         };

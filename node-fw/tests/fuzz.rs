@@ -11,9 +11,13 @@ use proptest::prelude::*;
 type Fw = Node<64, 512, 512, 256>;
 
 /// Links that deliver a scripted list of messages and record everything sent.
+#[derive(Default)]
 struct Script {
     inbox: Vec<(Port, Message)>,
     sent: usize,
+    /// Of those, rays (a cost model charges them apart).
+    rays_sent: usize,
+    rays_received: usize,
     full: bool,
     /// Peers that restart (a new incarnation on a framed link), one per poll.
     restarts: Vec<Port>,
@@ -27,13 +31,16 @@ fn due(restarts: &[(u64, Port)], step: u64) -> Vec<Port> {
 impl Links for Script {
     fn recv(&mut self, port: Port) -> Option<Message> {
         let i = self.inbox.iter().position(|(p, _)| *p == port)?;
-        Some(self.inbox.remove(i).1)
+        let msg = self.inbox.remove(i).1;
+        self.rays_received += usize::from(matches!(msg, Message::Ray(_)));
+        Some(msg)
     }
     fn try_send(&mut self, _: Port, msg: Message) -> Result<(), Message> {
         if self.full {
             return Err(msg);
         }
         self.sent += 1;
+        self.rays_sent += usize::from(matches!(msg, Message::Ray(_)));
         Ok(())
     }
     fn peer_restarted(&mut self) -> Option<Port> {
@@ -160,15 +167,18 @@ proptest! {
         restarts in proptest::collection::vec((0u64..200, arb_port()), 0..3),
     ) {
         let mut node: Box<Fw> = Box::new(Fw::new(3));
-        let mut links = Script { inbox: script, sent: 0, full: false, restarts: Vec::new() };
+        let mut links = Script { inbox: script, ..Script::default() };
         for step in 0..200u64 {
             links.full = (step as usize).is_multiple_of(full_every);
             links.restarts = due(&restarts, step);
-            let before = links.sent;
+            let before = (links.sent, links.rays_sent, links.rays_received);
             let work = node.poll(step * 100, &mut links);
-            // The work report counts exactly the messages the links took (a cost
-            // model charges by it).
-            prop_assert_eq!(work.sent as usize, links.sent - before);
+            // The work report counts exactly the messages the links took and
+            // gave, rays apart (a cost model charges by it).
+            prop_assert_eq!(work.sent as usize, links.sent - before.0);
+            prop_assert_eq!(work.rays_sent as usize, links.rays_sent - before.1);
+            prop_assert_eq!(work.rays_received as usize, links.rays_received - before.2);
+            let before = before.0;
             // Sends per poll are bounded by what the node can hold, not by input.
             prop_assert!(links.sent - before <= 256 + 64 + 16 + 16, "sent {} in one poll", links.sent - before);
             prop_assert!(work.traces <= 1 && work.created <= 1);
@@ -297,13 +307,16 @@ proptest! {
         let mut script = valid_setup(&spheres);
         script.extend(tail);
         let mut node: Box<Fw> = Box::new(Fw::new(0));
-        let mut links = Script { inbox: script, sent: 0, full: false, restarts: Vec::new() };
+        let mut links = Script { inbox: script, ..Script::default() };
         for step in 0..400u64 {
             links.full = (step as usize).is_multiple_of(full_every);
             links.restarts = due(&restarts, step);
-            let before = links.sent;
+            let before = (links.sent, links.rays_sent, links.rays_received);
             let work = node.poll(step * 100, &mut links);
-            prop_assert_eq!(work.sent as usize, links.sent - before);
+            prop_assert_eq!(work.sent as usize, links.sent - before.0);
+            prop_assert_eq!(work.rays_sent as usize, links.rays_sent - before.1);
+            prop_assert_eq!(work.rays_received as usize, links.rays_received - before.2);
+            let before = before.0;
             prop_assert!(links.sent - before <= 256 + 64 + 16 + 16);
             if links.inbox.is_empty() && !node.pending() {
                 break;
@@ -330,7 +343,7 @@ fn the_valid_setup_renders() {
         },
     }];
     let mut node: Box<Fw> = Box::new(Fw::new(0));
-    let mut links = Script { inbox: valid_setup(&spheres), sent: 0, full: false, restarts: Vec::new() };
+    let mut links = Script { inbox: valid_setup(&spheres), ..Script::default() };
     let mut traces = 0;
     for step in 0..2000u64 {
         traces += node.poll(step * 100, &mut links).traces;

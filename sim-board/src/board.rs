@@ -588,7 +588,7 @@ fn channel_timeout(config: &SimConfig) -> u64 {
     let trip = |l: &LinkModel| 2 * (l.latency + frame * l.byte);
     let c = &config.cost;
     let work = c.shade.max(c.create).max(c.trace + WALK_CUBES * c.cube_step);
-    let poll = 7 * SIM_INBOX as u64 * c.message + work;
+    let poll = 7 * SIM_INBOX as u64 * c.ray_message.max(c.short_message) + work;
     4 * trip(&config.link).max(trip(&config.host_link)) + 2 * poll
 }
 

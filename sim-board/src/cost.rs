@@ -15,8 +15,11 @@ pub struct CostModel {
     pub shade: u64,
     /// Creating one initial ray (camera direction, grid entry).
     pub create: u64,
-    /// Handling one received or sent message.
-    pub message: u64,
+    /// Handling one received or sent ray message.
+    pub ray_message: u64,
+    /// Handling one received or sent message of any other kind: replies,
+    /// space notices, retirements and control, all a few bytes to a ray's 60.
+    pub short_message: u64,
 }
 
 impl Default for CostModel {
@@ -28,10 +31,19 @@ impl Default for CostModel {
     /// shaded hit with one light and a mirror 72 353.5 (the surface and both
     /// children, evaluated once to count and once to spawn them); an initial
     /// ray (pixel line, ray, entry cube) 12 510.0; one end of a ray message
-    /// through a reliable channel, acks included, 4 557.8 (the UART's bytes
-    /// are the link model's).
+    /// through a reliable channel, acks included, 4 534.0, and of a ray reply
+    /// 2 081.6, which stands for every short message (the UART's bytes are
+    /// the link model's).
     fn default() -> Self {
-        Self { cube_step: 117, sphere_test: 224, trace: 768, shade: 72_354, create: 12_510, message: 4_558 }
+        Self {
+            cube_step: 117,
+            sphere_test: 224,
+            trace: 768,
+            shade: 72_354,
+            create: 12_510,
+            ray_message: 4_534,
+            short_message: 2_082,
+        }
     }
 }
 
@@ -43,7 +55,8 @@ impl CostModel {
             + u64::from(w.traces) * self.trace
             + u64::from(w.shades) * self.shade
             + u64::from(w.created) * self.create
-            + u64::from(w.received + w.sent) * self.message;
+            + u64::from(w.rays_received + w.rays_sent) * self.ray_message
+            + u64::from(w.received + w.sent - w.rays_received - w.rays_sent) * self.short_message;
         c.max(u64::from(w.is_busy()))
     }
 }
@@ -62,5 +75,21 @@ pub struct LinkModel {
 impl Default for LinkModel {
     fn default() -> Self {
         Self { byte: 25, latency: 2_000, capacity: 8 }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rays_and_short_messages_are_charged_apart() {
+        let c = CostModel::default();
+        let w = Work { received: 3, sent: 4, rays_received: 1, rays_sent: 2, cube_steps: 10, ..Work::default() };
+        assert_eq!(c.charge(&w), 3 * 4_534 + 4 * 2_082 + 10 * 117);
+        // Anything done costs at least a cycle; nothing costs nothing.
+        let free = CostModel { cube_step: 0, ..c };
+        assert_eq!(free.charge(&Work { cube_steps: 5, ..Work::default() }), 1);
+        assert_eq!(c.charge(&Work::default()), 0);
     }
 }

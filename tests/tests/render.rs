@@ -111,7 +111,8 @@ fn a_node_far_ahead_in_virtual_time_is_waited_for() {
     opts.size = size;
     opts.level_depth = 2;
     opts.sim.cost.shade = 3_000_000;
-    opts.sim.cost.message = 50_000;
+    opts.sim.cost.ray_message = 50_000;
+    opts.sim.cost.short_message = 50_000;
     let r = render_sim(&s, &opts).unwrap_or_else(|e| panic!("the array finishes: {e}"));
     assert_eq!(r.frame.rays_created, r.frame.rays_terminated);
     assert!(r.frame.sums == direct::render(&s, size[0], size[1]).unwrap().sums);

@@ -12,7 +12,7 @@ use core::fmt::Write as _;
 
 use cortex_m_rt::entry;
 use embedded_io::Write;
-use link_proto::{CameraMsg, LightMsg, MaterialMsg, Message, RayMsg, SceneHeader, SphereMsg};
+use link_proto::{CameraMsg, LightMsg, MaterialMsg, Message, RayMsg, RayReply, SceneHeader, SphereMsg};
 use node_board::board::mps2_an385::{self as board, Timer, Uart};
 use node_fw::camera::{primary_line, primary_ray};
 use node_fw::reliable::Channel;
@@ -213,9 +213,10 @@ fn shadings(timer: &mut Timer, grid: &Grid, spheres: &[Sphere]) -> (u64, u64) {
     (ticks, shaded)
 }
 
-/// Passing rays through a reliable channel pair, both ends and the acks
-/// (per message and end, bytes on the UART not included).
-fn messages(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
+/// Passing messages made from `rays` (the rays themselves, or short replies
+/// to them) through a reliable channel pair, both ends and the acks (per
+/// message and end, bytes on the UART not included).
+fn messages(timer: &mut Timer, rays: &[RayMsg], make: impl Fn(&RayMsg) -> Message) -> (u64, u64) {
     let (mut a, mut b) = (Channel::<4>::new(1 << 40), Channel::<4>::new(1 << 40));
     a.set_incarnation(1);
     b.set_incarnation(2);
@@ -224,9 +225,9 @@ fn messages(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     let (mut passed, start) = (0u64, timer.ticks());
     for round in 0..40u64 {
         for ray in rays {
-            let _ = a.send(Message::Ray(*ray));
+            let _ = a.send(make(ray));
             a.transmit(round, |f| wire.extend_from_slice(f).is_ok());
-            b.receive(&wire, |m| core::hint::black_box(matches!(m, Message::Ray(_))));
+            b.receive(&wire, |m| core::hint::black_box(!matches!(m, Message::Hello(_))));
             wire.clear();
             b.transmit(round, |f| back.extend_from_slice(f).is_ok());
             a.receive(&back, |_| true);
@@ -311,8 +312,11 @@ fn main() -> ! {
     let _ = writeln!(out, "kernel trace {} {n}", per_unit_x100(ticks, n));
     let (ticks, n) = shadings(&mut timer, &grid, &spheres);
     let _ = writeln!(out, "kernel shade {} {n}", per_unit_x100(ticks, n));
-    let (ticks, n) = messages(&mut timer, &rays);
+    let (ticks, n) = messages(&mut timer, &rays, |r| Message::Ray(*r));
     let _ = writeln!(out, "kernel message {} {n}", per_unit_x100(ticks, n));
+    let reply = |r: &RayMsg| Message::RayReply(RayReply { tag: r.tag, accepted: true });
+    let (ticks, n) = messages(&mut timer, &rays, reply);
+    let _ = writeln!(out, "kernel reply {} {n}", per_unit_x100(ticks, n));
     let _ = writeln!(out, "kernels done");
     board::exit(true)
 }
