@@ -85,7 +85,8 @@ mod tests {
     #[test]
     fn rays_and_short_messages_are_charged_apart() {
         let c = CostModel::default();
-        let w = Work { received: 3, sent: 4, rays_received: 1, rays_sent: 2, cube_steps: 10, ..Work::default() };
+        let w =
+            Work { received: 3, sent: 4, rays_received: 1, rays_sent: 2, cube_steps: 10, ..Work::default() };
         assert_eq!(c.charge(&w), 3 * 4_534 + 4 * 2_082 + 10 * 117);
         // Anything done costs at least a cycle; nothing costs nothing.
         let free = CostModel { cube_step: 0, ..c };
