@@ -10,6 +10,9 @@
 //! in the image; a ray that enters elsewhere (through a side face, or across
 //! a tile's rounded edge) is passed on as in the parallel mode.
 
+use node_fw::camera::primary_line;
+use node_fw::{DigitalLine, Grid};
+
 use crate::camera::PixelBasis;
 use crate::partition::{Partition, tiles};
 
@@ -29,16 +32,19 @@ pub fn entry_tiles(
 ) -> Vec<[u16; 4]> {
     let regular = || tiles(size[0], size[1], partition.len());
     let g = grid.map(f64::from);
+    let Ok(cubes) = Grid::new(grid) else { return regular() };
     if (0..3).all(|a| basis.eye[a] > 0.0 && basis.eye[a] < g[a]) {
         return regular();
     }
     let [w, h] = size.map(usize::from);
-    // The array coordinate of each pixel's entry node, or None for a miss.
+    let camera = basis.msg();
+    // The array coordinate of each pixel's entry node, or None for a miss:
+    // the entry cube the creating node itself will compute.
     let coords: Vec<Option<[u16; 3]>> = (0..w * h)
         .map(|i| {
-            let (x, y) = ((i % w) as f64, (i / w) as f64);
-            let d = std::array::from_fn(|a| basis.corner[a] + x * basis.du[a] + y * basis.dv[a]);
-            entry_point(basis.eye, d, g).map(|p| partition.coord(partition.owner_of(p, grid)))
+            let line = primary_line(&camera, (i % w) as u16, (i / w) as u16).ok()?;
+            let cell = DigitalLine::enter(&line, &cubes)?.cell();
+            Some(partition.coord(partition.owner_of(cell.map(|c| f64::from(c) + 0.5), grid)))
         })
         .collect();
     if coords.iter().all(Option::is_none) {
@@ -60,27 +66,6 @@ pub fn entry_tiles(
             [col.0, row.0, col.1, row.1].map(|v| v as u16)
         })
         .collect()
-}
-
-/// Where the ray from `eye` along `d` enters the box `[0, g]`, nudged inside.
-fn entry_point(eye: [f64; 3], d: [f64; 3], g: [f64; 3]) -> Option<[f64; 3]> {
-    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
-    for a in 0..3 {
-        if d[a] == 0.0 {
-            if eye[a] < 0.0 || eye[a] > g[a] {
-                return None;
-            }
-            continue;
-        }
-        let (ta, tb) = (-eye[a] / d[a], (g[a] - eye[a]) / d[a]);
-        t0 = t0.max(ta.min(tb));
-        t1 = t1.min(ta.max(tb));
-    }
-    if t0 >= t1 {
-        return None;
-    }
-    let t = t0 + (t1 - t0).min(1e-3) / 2.0;
-    Some(std::array::from_fn(|k| eye[k] + t * d[k]))
 }
 
 /// Which of the array axes `a` and `b` runs across the image (its coordinate
@@ -151,6 +136,28 @@ fn bands<I: Iterator<Item = u16>>(len: usize, n: u16, line: impl Fn(usize) -> I)
 mod tests {
     use super::*;
     use crate::scene::Scene;
+
+    /// The independent reference: where the f64 ray from `eye` along `d`
+    /// enters the box `[0, g]`, nudged inside (slab test).
+    fn entry_point(eye: [f64; 3], d: [f64; 3], g: [f64; 3]) -> Option<[f64; 3]> {
+        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+        for a in 0..3 {
+            if d[a] == 0.0 {
+                if eye[a] < 0.0 || eye[a] > g[a] {
+                    return None;
+                }
+                continue;
+            }
+            let (ta, tb) = (-eye[a] / d[a], (g[a] - eye[a]) / d[a]);
+            t0 = t0.max(ta.min(tb));
+            t1 = t1.min(ta.max(tb));
+        }
+        if t0 >= t1 {
+            return None;
+        }
+        let t = t0 + (t1 - t0).min(1e-3) / 2.0;
+        Some(std::array::from_fn(|k| eye[k] + t * d[k]))
+    }
 
     /// Every pixel in exactly one tile.
     fn covers_once(tiles: &[[u16; 4]], size: [u16; 2]) -> bool {

@@ -391,13 +391,12 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                     base_d.imbalance,
                     st_d as f64 / bound(&base_d)
                 );
-                let mut unplotted = Series { name: String::new(), points: Vec::new(), markers: false };
                 for (initial, policy, name, line) in [
-                    (Initial::Parallel, Policy::Paper, "slide", &mut paper),
-                    (Initial::Parallel, Policy::PaperView, "slide-view", &mut view),
-                    (Initial::Parallel, Policy::ProportionalView, "proportional-view", &mut prop),
-                    (Initial::Entry, Policy::PaperView, "slide-view-entry", &mut unplotted),
-                    (Initial::Entry, Policy::ProportionalView, "proportional-view-entry", &mut entry),
+                    (Initial::Parallel, Policy::Paper, "slide", Some(&mut paper)),
+                    (Initial::Parallel, Policy::PaperView, "slide-view", Some(&mut view)),
+                    (Initial::Parallel, Policy::ProportionalView, "proportional-view", Some(&mut prop)),
+                    (Initial::Entry, Policy::PaperView, "slide-view-entry", None),
+                    (Initial::Entry, Policy::ProportionalView, "proportional-view-entry", Some(&mut entry)),
                 ] {
                     // The interval is a 64th of the matching static run.
                     let own_static = if initial == Initial::Entry { st_d } else { st };
@@ -405,7 +404,9 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                     let (t, imb, slides, axis) = (r.makespan, r.imbalance, r.slides, r.axis);
                     let ratio = t as f64 / st as f64;
                     let (churn, steady, back) = (r.churn, r.steady_churn, r.reversals);
-                    line.points.push((v, ratio));
+                    if let Some(line) = line {
+                        line.points.push((v, ratio));
+                    }
                     let _ = writeln!(
                         fig9,
                         "{n}x{n}x{n},{count},{v},{name},{axis},{t},{ratio:.3},{imb:.3},{slides},{churn:.4},{steady:.4},{back:.3}"

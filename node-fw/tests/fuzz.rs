@@ -23,6 +23,20 @@ struct Script {
     restarts: Vec<Port>,
 }
 
+/// Polls `node` once and checks its work report against what the links saw:
+/// exactly the messages they took and gave, rays apart (a cost model charges
+/// by them), and sends bounded by what the node can hold, not by its input.
+fn poll_counted(node: &mut Fw, links: &mut Script, now: u64) -> Result<node_fw::Work, TestCaseError> {
+    let before = (links.sent, links.rays_sent, links.rays_received);
+    let work = node.poll(now, links);
+    let sent = links.sent - before.0;
+    prop_assert_eq!(work.sent as usize, sent);
+    prop_assert_eq!(work.rays_sent as usize, links.rays_sent - before.1);
+    prop_assert_eq!(work.rays_received as usize, links.rays_received - before.2);
+    prop_assert!(sent <= 256 + 64 + 16 + 16, "sent {} in one poll", sent);
+    Ok(work)
+}
+
 /// The ports whose peers restart at `step`.
 fn due(restarts: &[(u64, Port)], step: u64) -> Vec<Port> {
     restarts.iter().filter(|(at, _)| *at == step).map(|(_, p)| *p).collect()
@@ -171,16 +185,7 @@ proptest! {
         for step in 0..200u64 {
             links.full = (step as usize).is_multiple_of(full_every);
             links.restarts = due(&restarts, step);
-            let before = (links.sent, links.rays_sent, links.rays_received);
-            let work = node.poll(step * 100, &mut links);
-            // The work report counts exactly the messages the links took and
-            // gave, rays apart (a cost model charges by it).
-            prop_assert_eq!(work.sent as usize, links.sent - before.0);
-            prop_assert_eq!(work.rays_sent as usize, links.rays_sent - before.1);
-            prop_assert_eq!(work.rays_received as usize, links.rays_received - before.2);
-            let before = before.0;
-            // Sends per poll are bounded by what the node can hold, not by input.
-            prop_assert!(links.sent - before <= 256 + 64 + 16 + 16, "sent {} in one poll", links.sent - before);
+            let work = poll_counted(&mut node, &mut links, step * 100)?;
             prop_assert!(work.traces <= 1 && work.created <= 1);
             if links.inbox.is_empty() && !node.pending() {
                 break;
@@ -311,13 +316,7 @@ proptest! {
         for step in 0..400u64 {
             links.full = (step as usize).is_multiple_of(full_every);
             links.restarts = due(&restarts, step);
-            let before = (links.sent, links.rays_sent, links.rays_received);
-            let work = node.poll(step * 100, &mut links);
-            prop_assert_eq!(work.sent as usize, links.sent - before.0);
-            prop_assert_eq!(work.rays_sent as usize, links.rays_sent - before.1);
-            prop_assert_eq!(work.rays_received as usize, links.rays_received - before.2);
-            let before = before.0;
-            prop_assert!(links.sent - before <= 256 + 64 + 16 + 16);
+            poll_counted(&mut node, &mut links, step * 100)?;
             if links.inbox.is_empty() && !node.pending() {
                 break;
             }
