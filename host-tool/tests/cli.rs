@@ -1,28 +1,29 @@
 //! The command line: bad input gets one clear line and a non-zero exit, and
 //! nothing is written.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
+
+use tempfile::TempDir;
 
 fn host_tool(dir: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_host-tool")).current_dir(dir).args(args).output().expect("runs")
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("host-tool-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh directory for one case, removed when dropped.
+fn scratch(name: &str) -> TempDir {
+    tempfile::Builder::new().prefix(&format!("host-tool-cli-{name}-")).tempdir().unwrap()
 }
 
 /// Runs a failing command: exactly one line on stderr naming `needle`, exit
 /// `code`, and no output files.
 fn fails(name: &str, args: &[&str], scene: Option<&str>, code: i32, needle: &str) {
-    let dir = scratch(name);
+    let scratch = scratch(name);
+    let dir = scratch.path();
     if let Some(text) = scene {
         std::fs::write(dir.join("scene.json"), text).unwrap();
     }
-    let out = host_tool(&dir, args);
+    let out = host_tool(dir, args);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(code), "{name}: {err}");
     assert!(err.contains(needle), "{name}: '{err}' lacks '{needle}'");
@@ -94,8 +95,9 @@ fn bad_input_is_one_line_with_its_documented_exit_code() {
 
 #[test]
 fn default_render_writes_image_loads_and_summary() {
-    let dir = scratch("ok");
-    let out = host_tool(&dir, &["render", "--size", "32x24", "--array", "2x2x2", "--spheres", "50"]);
+    let scratch = scratch("ok");
+    let dir = scratch.path();
+    let out = host_tool(dir, &["render", "--size", "32x24", "--array", "2x2x2", "--spheres", "50"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
