@@ -78,13 +78,8 @@ impl DigitalLine {
             let size = i64::from(grid.size().get(axis).copied().unwrap_or(1));
             // Entry point coordinate in raw units: (O den + num D) / den, exact.
             let num = i128::from(oj) * i128::from(t_in.den) + i128::from(t_in.num) * i128::from(dj);
-            let den = i128::from(t_in.den) * i128::from(ONE);
-            let index = match dj.signum() {
-                1 => num.div_euclid(den),
-                -1 => -((-num).div_euclid(den)) - 1,
-                _ => i128::from(oj.div_euclid(ONE)),
-            };
-            *out = index.clamp(0, i128::from(size - 1)) as i32;
+            let den = t_in.den * ONE;
+            *out = entry_index(num, den, dj.signum(), oj, size);
         }
         Self::resume(line, cell).ok()
     }
@@ -241,6 +236,29 @@ fn entry_interval(line: &Line, grid: &Grid) -> Option<(Ratio, Ratio)> {
     }
     let t_out = t_out?;
     t_in.lt(t_out).then_some((t_in, t_out))
+}
+
+/// The cube index along one axis of the entry point `num / den` (raw units,
+/// `den > 0`), on the lower side of a boundary when moving down (`sign < 0`),
+/// clamped into the grid's `size` cubes; `origin`'s cube when not moving.
+///
+/// Outside `(0, den size]` the clamp decides; inside, `num < 2^56`, so one
+/// 64-bit division does what a 128-bit one did (a Cortex-M divides 128-bit
+/// integers in software, bit by bit).
+fn entry_index(num: i128, den: i64, sign: i64, origin: i64, size: i64) -> i32 {
+    let index = if sign == 0 {
+        origin.div_euclid(ONE)
+    } else if num <= 0 {
+        0
+    } else if num > i128::from(den) * i128::from(size) {
+        size - 1
+    } else {
+        let (n, d) = (num as u64, den as u64);
+        // floor(num / den) moving up; ceil(num / den) - 1 moving down.
+        let n = if sign > 0 { n } else { n - 1 };
+        n.checked_div(d).unwrap_or(0) as i64
+    };
+    index.clamp(0, size - 1) as i32
 }
 
 fn get(a: &[i64; 3], i: usize) -> i64 {

@@ -6,6 +6,7 @@
 
 use crate::error::{Error, Field};
 use crate::limits::{DIR_FRAC, DIR_ONE, MAX_GRID, MAX_UNIT_ERROR_RAW, ONE, Scalar, Unit, coord_in_range};
+use crate::wide;
 
 /// The scene's grid of unit cubes, `[0, size)` on each axis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -102,18 +103,27 @@ impl Direction {
             return Err(Error::OutOfRange(Field::Direction));
         }
         // Rescale so the largest component lies in [2^40, 2^41): the square root
-        // is then exact to 2^-41 whatever the input's scale.
+        // is then exact to 2^-41 whatever the input's scale. (The shift right
+        // rounds toward minus infinity, as it always has: the bits are part of
+        // every image.)
         let top = 63 - largest.leading_zeros() as i32;
-        let v = v.map(|c| {
-            let c = i128::from(c);
-            if top < 40 { c << (40 - top) } else { c >> (top - 40) }
-        });
-        let len2: i128 = v.iter().map(|&c| c * c).sum();
-        let len = len2.isqrt();
+        let v = v.map(|c| if top < 40 { c << (40 - top) } else { c >> (top - 40) });
+        // |c| < 2^41: squares below 2^82, their sum below 2^84, its root below 2^42.
+        let len2: u128 = v.iter().map(|&c| wide::square(c.unsigned_abs())).sum();
+        let len = u64::try_from(wide::isqrt(len2)).map_err(|_| Error::OutOfRange(Field::Direction))?;
+        // len is in [2^40, 2^42) and |c| <= len, so the reciprocal applies.
+        let by_len = wide::Divisor30::new(len);
         let mut raw = [0i32; 3];
         for (out, &c) in raw.iter_mut().zip(&v) {
-            let scaled = (c << DIR_FRAC) / len;
-            *out = i32::try_from(scaled).map_err(|_| Error::OutOfRange(Field::Direction))?;
+            // c 2^30 / len, truncated toward zero.
+            let q = match by_len {
+                Some(by_len) => by_len.div_shl30(c.unsigned_abs()),
+                None => wide::div_shl30(c.unsigned_abs(), len),
+            };
+            let q = q.ok_or(Error::OutOfRange(Field::Direction))?;
+            let q = i64::try_from(q).map_err(|_| Error::OutOfRange(Field::Direction))?;
+            *out =
+                i32::try_from(if c < 0 { -q } else { q }).map_err(|_| Error::OutOfRange(Field::Direction))?;
         }
         Self::from_bits(raw)
     }
@@ -175,4 +185,54 @@ impl Line {
 pub fn zip3<A: Copy, B: Copy, T>(a: [A; 3], b: [B; 3], f: impl Fn(A, B) -> T) -> [T; 3] {
     let ([a0, a1, a2], [b0, b1, b2]) = (a, b);
     [f(a0, b0), f(a1, b1), f(a2, b2)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The plain 128-bit normalisation the firmware shipped first: the bits
+    /// of every image rest on it, so the fast one must agree everywhere.
+    fn normalize_i128(v: [i64; 3]) -> Option<[i32; 3]> {
+        let largest = v.iter().map(|c| c.unsigned_abs()).max()?;
+        if largest == 0 {
+            return None;
+        }
+        let top = 63 - largest.leading_zeros() as i32;
+        let v = v.map(|c| {
+            let c = i128::from(c);
+            if top < 40 { c << (40 - top) } else { c >> (top - 40) }
+        });
+        let len = v.iter().map(|&c| c * c).sum::<i128>().isqrt();
+        let raw = v.map(|c| i32::try_from((c << DIR_FRAC) / len).ok());
+        Some([raw[0]?, raw[1]?, raw[2]?]).filter(|r| Direction::from_bits(*r).is_ok())
+    }
+
+    fn agrees(v: [i64; 3]) -> Result<(), TestCaseError> {
+        let fast = Direction::normalize(v).ok().map(|d| d.bits());
+        prop_assert_eq!(fast, normalize_i128(v), "v = {:?}", v);
+        Ok(())
+    }
+
+    #[test]
+    fn normalize_matches_the_128_bit_reference_at_the_extremes() {
+        let edges = [0, 1, -1, 2, 3, (1 << 40) - 1, 1 << 40, -(1 << 41), i64::MAX, i64::MIN, i64::MIN + 1];
+        for &x in &edges {
+            for &y in &edges {
+                for &z in &edges {
+                    agrees([x, y, z]).unwrap();
+                }
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(20_000))]
+
+        #[test]
+        fn normalize_matches_the_128_bit_reference(v in any::<[i64; 3]>(), shifts in any::<[u8; 3]>()) {
+            agrees(core::array::from_fn(|i| v[i] >> (shifts[i] % 64)))?;
+        }
+    }
 }

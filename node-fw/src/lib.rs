@@ -31,6 +31,7 @@ pub mod shading;
 pub mod slide;
 pub mod sphere;
 pub mod subregion;
+pub mod wide;
 pub mod wiring;
 
 pub use cube_box::CubeBox;

@@ -145,8 +145,8 @@ impl Scene<'_> {
         light: &LightMsg,
     ) -> Option<Child> {
         let to_light = zip3(light.position, surface.point, |l, p| i64::from(l) - i64::from(p));
-        let dist: i128 = to_light.iter().map(|&x| sq(x)).sum();
-        let dist = i32::try_from(dist.isqrt()).ok().filter(|&d| d > 0)?;
+        let dist: u128 = to_light.iter().map(|&x| crate::wide::square(x.unsigned_abs())).sum();
+        let dist = i32::try_from(crate::wide::isqrt(dist)).ok().filter(|&d| d > 0)?;
         let l = Direction::normalize(to_light).ok()?.bits();
         let ndl = dot30(&surface.normal, &l);
         if ndl <= 0 {
