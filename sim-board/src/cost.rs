@@ -26,21 +26,21 @@ impl Default for CostModel {
     /// Cortex-M3 instructions of the node firmware, measured on the emulated
     /// mps2-an385 (`scripts/firmware.sh` runs the `kernels` binary under
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
-    /// test) 117.1; a sphere test over a mostly-missing list 224.0; a walk's
+    /// test) 115.2; a sphere test over a mostly-missing list 224.0; a walk's
     /// set-up (the received ray's line checked, the walk resumed) 767.9; a
-    /// shaded hit with one light and a mirror 72 353.5 (the surface and both
+    /// shaded hit with one light and a mirror 15 619.3 (the surface and both
     /// children, evaluated once to count and once to spawn them); an initial
-    /// ray (pixel line, ray, entry cube) 12 510.0; one end of a ray message
+    /// ray (pixel line, ray, entry cube) 3 245.8; one end of a ray message
     /// through a reliable channel, acks included, 4 534.0, and of a ray reply
     /// 2 081.6, which stands for every short message (the UART's bytes are
     /// the link model's).
     fn default() -> Self {
         Self {
-            cube_step: 117,
+            cube_step: 115,
             sphere_test: 224,
             trace: 768,
-            shade: 72_354,
-            create: 12_510,
+            shade: 15_619,
+            create: 3_246,
             ray_message: 4_534,
             short_message: 2_082,
         }
@@ -84,10 +84,11 @@ mod tests {
 
     #[test]
     fn rays_and_short_messages_are_charged_apart() {
-        let c = CostModel::default();
+        let c =
+            CostModel { cube_step: 100, ray_message: 5_000, short_message: 2_000, ..CostModel::default() };
         let w =
             Work { received: 3, sent: 4, rays_received: 1, rays_sent: 2, cube_steps: 10, ..Work::default() };
-        assert_eq!(c.charge(&w), 3 * 4_534 + 4 * 2_082 + 10 * 117);
+        assert_eq!(c.charge(&w), 3 * 5_000 + 4 * 2_000 + 10 * 100);
         // Anything done costs at least a cycle; nothing costs nothing.
         let free = CostModel { cube_step: 0, ..c };
         assert_eq!(free.charge(&Work { cube_steps: 5, ..Work::default() }), 1);
