@@ -5,7 +5,9 @@ use std::time::Duration;
 
 use crate::error::{HostError, input};
 use crate::qemu::QemuArray;
-use crate::render::{Array, RenderOptions, RenderResult, check_frame, even_partition, render_on, render_sim};
+use crate::render::{
+    Array, RenderOptions, RenderResult, check_frame, initial_partition, render_on, render_sim,
+};
 use crate::scene::Scene;
 use crate::serial::SerialArray;
 
@@ -42,7 +44,7 @@ pub fn render(
         Backend::Sim => render_sim(scene, opts),
         Backend::Qemu { firmware } => {
             // Check the scene before starting eight emulators.
-            even_partition(scene, opts)?;
+            initial_partition(scene, opts)?;
             let qemu = QemuArray::launch(opts.array, firmware)?;
             let result = render_serial(scene, opts, &qemu.ptys, node_timeout);
             drop(qemu);
@@ -66,7 +68,7 @@ pub fn render_serial(
     ports: &[String],
     node_timeout: Duration,
 ) -> Result<RenderResult, HostError> {
-    let partition = even_partition(scene, opts)?;
+    let partition = initial_partition(scene, opts)?;
     let names = (0..partition.len())
         .map(|i| {
             let c = partition.coord(i);

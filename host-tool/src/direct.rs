@@ -50,6 +50,36 @@ pub fn render_with_costs(
     render_impl(scene, width, height, Some(cost), 30)
 }
 
+/// The compute cost map of a `width` x `height` render of `scene`; with
+/// `creation`, each initial ray's creation is charged to the cube where it
+/// enters the grid, as when the node holding that cube creates it.
+pub fn cost_map(
+    scene: &Scene,
+    width: u16,
+    height: u16,
+    cost: &sim_board::CostModel,
+    creation: bool,
+) -> Result<Vec<u64>, HostError> {
+    let mut costs = Costs {
+        model: *cost,
+        grid: scene.grid,
+        map: render_with_costs(scene, width, height, cost)?.cost_map,
+    };
+    if creation {
+        let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
+        let camera = PixelBasis::new(&scene.camera(), width, height).msg();
+        for y in 0..height {
+            for x in 0..width {
+                let line = primary_line(&camera, x, y).map_err(|e| input(format!("camera: {e:?}")))?;
+                if let Some(walk) = DigitalLine::enter(&line, &grid) {
+                    costs.add(walk.cell(), cost.create);
+                }
+            }
+        }
+    }
+    Ok(costs.map)
+}
+
 /// Renders `scene` with the camera's direction basis rounded to `bits` fraction
 /// bits (instead of 30), for the numerics report.
 pub fn render_with_camera_bits(

@@ -8,7 +8,7 @@ use host_tool::backend::Backend;
 use host_tool::compare::compare;
 use host_tool::error::{HostError, input};
 use host_tool::output::{png, write_atomic};
-use host_tool::render::{Initial, RenderOptions, RenderResult, render_sim};
+use host_tool::render::{Initial, Layout, RenderOptions, RenderResult, render_sim};
 use host_tool::scene::Scene;
 use host_tool::{direct, reference};
 use link_proto::{Balance, SlidePolicy};
@@ -128,6 +128,15 @@ enum InitialMode {
 }
 
 #[derive(Clone, Copy, ValueEnum)]
+enum LayoutMode {
+    /// Even boxes (the paper's start).
+    Even,
+    /// Fitted to the cost of a quarter-resolution preview the host renders
+    /// first (beyond the paper).
+    Preview,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
 enum BalanceMode {
     /// No redistribution: the even partition throughout.
     Static,
@@ -183,6 +192,9 @@ struct RenderArgs {
     /// Seconds a node may leave the host unanswered before the run fails (qemu, serial).
     #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
     node_timeout: f64,
+    /// How the grid is first cut into subregions.
+    #[arg(long, value_enum, default_value = "even")]
+    layout: LayoutMode,
     /// Load balancing.
     #[arg(long, value_enum, default_value = "slide")]
     balance: BalanceMode,
@@ -301,6 +313,10 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         InitialMode::Parallel => Initial::Parallel,
         InitialMode::Eye => Initial::EyeNode,
         InitialMode::Entry => Initial::Entry,
+    };
+    opts.layout = match args.layout {
+        LayoutMode::Even => Layout::Even,
+        LayoutMode::Preview => Layout::Preview,
     };
     opts.sim.faults = args.faults;
     opts.sim.restart = args.restart_node;
@@ -512,6 +528,7 @@ fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String
         "spheres": scene.spheres.len(),
         "lights": scene.lights.len(),
         "initial_rays": opts.initial.name(),
+        "layout": opts.layout.name(),
         "queue_depth": opts.level_depth,
         "balance": if opts.balance.is_some() { "slide" } else { "static" },
         "driving_axis": r.partition.driving_axis,

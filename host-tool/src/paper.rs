@@ -18,8 +18,9 @@ use link_proto::{Balance, SlidePolicy};
 
 use crate::error::HostError;
 use crate::output::write_atomic;
+use crate::partition::Partition;
 use crate::plot::{Chart, Series, png};
-use crate::render::{Initial, RenderOptions, render_sim};
+use crate::render::{Initial, Layout, RenderOptions, render_sim};
 use crate::scene::Scene;
 
 /// Experiment sizes.
@@ -181,6 +182,20 @@ fn run_on(
         steady_churn: per_interval(steady.moves, t - t / 4 - t / 4),
         reversals: steady.reversals as f64 / steady.moves.max(1) as f64,
     })
+}
+
+/// The partition fitted to a quarter-resolution preview (`--layout preview`),
+/// along the view axis, for rays started as `initial` says.
+fn preview(
+    scene: &Scene,
+    side: [u16; 3],
+    cfg: &PaperConfig,
+    initial: Initial,
+) -> Result<Partition, HostError> {
+    let mut opts = options(scene, side, cfg, initial, true);
+    opts.layout = Layout::Preview;
+    opts.driving_axis = Some(crate::partition::view_axis(scene));
+    crate::render::initial_partition(scene, &opts)
 }
 
 /// Boundaries perpendicular to the driving axis (one per adjacent node pair along it).
@@ -391,16 +406,42 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                     base_d.imbalance,
                     st_d as f64 / bound(&base_d)
                 );
-                for (initial, policy, name, line) in [
-                    (Initial::Parallel, Policy::Paper, "slide", Some(&mut paper)),
-                    (Initial::Parallel, Policy::PaperView, "slide-view", Some(&mut view)),
-                    (Initial::Parallel, Policy::ProportionalView, "proportional-view", Some(&mut prop)),
-                    (Initial::Entry, Policy::PaperView, "slide-view-entry", None),
-                    (Initial::Entry, Policy::ProportionalView, "proportional-view-entry", Some(&mut entry)),
+                // Beyond the paper: the partition fitted to a preview, static and sliding.
+                let fitted = preview(&scene, [n; 3], cfg, Initial::Entry)?;
+                let pre =
+                    run_on(&scene, [n; 3], cfg, Initial::Entry, Policy::Static, st_d, Some(fitted.clone()))?;
+                for (initial, policy, name, line, start) in [
+                    (Initial::Parallel, Policy::Paper, "slide", Some(&mut paper), None),
+                    (Initial::Parallel, Policy::PaperView, "slide-view", Some(&mut view), None),
+                    (Initial::Parallel, Policy::ProportionalView, "proportional-view", Some(&mut prop), None),
+                    (Initial::Entry, Policy::PaperView, "slide-view-entry", None, None),
+                    (
+                        Initial::Entry,
+                        Policy::ProportionalView,
+                        "proportional-view-entry",
+                        Some(&mut entry),
+                        None,
+                    ),
+                    (Initial::Entry, Policy::Static, "static-preview-entry", None, Some(&fitted)),
+                    (
+                        Initial::Entry,
+                        Policy::ProportionalView,
+                        "proportional-preview-entry",
+                        None,
+                        Some(&fitted),
+                    ),
                 ] {
                     // The interval is a 64th of the matching static run.
-                    let own_static = if initial == Initial::Entry { st_d } else { st };
-                    let r = run(&scene, [n; 3], cfg, initial, policy, own_static)?;
+                    let own_static = match (initial, start) {
+                        (_, Some(_)) => pre.makespan,
+                        (Initial::Entry, None) => st_d,
+                        _ => st,
+                    };
+                    let r = match start {
+                        Some(_) if matches!(policy, Policy::Static) => pre,
+                        Some(p) => run_on(&scene, [n; 3], cfg, initial, policy, own_static, Some(p.clone()))?,
+                        None => run(&scene, [n; 3], cfg, initial, policy, own_static)?,
+                    };
                     let (t, imb, slides, axis) = (r.makespan, r.imbalance, r.slides, r.axis);
                     let ratio = t as f64 / st as f64;
                     let (churn, steady, back) = (r.churn, r.steady_churn, r.reversals);

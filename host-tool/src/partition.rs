@@ -58,6 +58,48 @@ impl Partition {
         Ok(p)
     }
 
+    /// A partition fitted to a per-cube cost map (x fastest). The planes across
+    /// the driving axis stay whole (routing needs nothing but a node's own
+    /// box), placed so the rows of nodes along the driving axis carry costs as
+    /// even as whole planes allow: rectilinear partitioning after Nicol (1994),
+    /// each axis in turn cut to minimise the busiest row given the other's
+    /// cuts. Each row is then cut along the driving axis where its cost splits
+    /// evenly. From the true cost map this is an oracle; from a preview
+    /// render's, a start the host can afford.
+    pub fn fitted(
+        grid: [u16; 3],
+        array: [u16; 3],
+        driving_axis: u8,
+        cost: &[u64],
+    ) -> Result<Self, HostError> {
+        let mut p = Self::even(grid, array, driving_axis)?;
+        let d = usize::from(driving_axis);
+        let [a, b] = [(d + 1) % 3, (d + 2) % 3];
+        let mut best = p.busiest_row(grid, cost);
+        // A few alternations settle it; keep the best seen, as a pass may not improve.
+        for _ in 0..4 {
+            let mut next = p.clone();
+            for (cut, other) in [(a, b), (b, a)] {
+                let planes = plane_costs(grid, cost, cut, other, &next.cuts[other]);
+                next.cuts[cut] = bottleneck_cuts(&planes, usize::from(array[cut]));
+            }
+            let busiest = next.busiest_row(grid, cost);
+            if busiest >= best {
+                break;
+            }
+            (p, best) = (next, busiest);
+        }
+        let parts = usize::from(array[d]);
+        p.row_cuts =
+            Some(p.row_layers(grid, cost).iter().map(|layer| equal_cost_cuts(layer, parts)).collect());
+        Ok(p)
+    }
+
+    /// The cost of the busiest row of nodes along the driving axis.
+    fn busiest_row(&self, grid: [u16; 3], cost: &[u64]) -> u64 {
+        self.row_layers(grid, cost).iter().map(|l| l.iter().sum::<u64>()).max().unwrap_or(0)
+    }
+
     /// Per row of nodes along the driving axis (in [`Self::row_of`] order),
     /// the cost of each layer of cubes across it, from a per-cube cost map.
     /// Uses the even cuts across the driving axis.
@@ -215,6 +257,65 @@ pub fn equal_cost_cuts(layers: &[u64], parts: usize) -> Vec<u16> {
     cuts
 }
 
+/// Per plane of cubes across axis `cut`, its cost within each part of axis
+/// `other` (cut at `other_cuts`), summed over the third axis.
+fn plane_costs(grid: [u16; 3], cost: &[u64], cut: usize, other: usize, other_cuts: &[u16]) -> Vec<Vec<u64>> {
+    let part_of: Vec<usize> = (0..grid[other])
+        .map(|c| other_cuts.windows(2).position(|w| c >= w[0] && c < w[1]).unwrap_or(0))
+        .collect();
+    let mut planes = vec![vec![0u64; other_cuts.len().saturating_sub(1)]; usize::from(grid[cut])];
+    let (nx, ny) = (usize::from(grid[0]), usize::from(grid[1]));
+    for (i, &c) in cost.iter().enumerate() {
+        let cell = [i % nx, (i / nx) % ny, i / (nx * ny)];
+        if let Some(part) = planes.get_mut(cell[cut]).and_then(|p| p.get_mut(part_of[cell[other]])) {
+            *part += c;
+        }
+    }
+    planes
+}
+
+/// Cuts `0 = c_0 < ... < c_parts = planes.len()` minimising the largest
+/// per-component sum of any part (each plane a vector of costs, one per row
+/// it crosses): the least feasible bound by bisection, then a greedy cut.
+pub fn bottleneck_cuts(planes: &[Vec<u64>], parts: usize) -> Vec<u16> {
+    let fallback = || (0..=parts).map(|i| (i * planes.len() / parts.max(1)) as u16).collect();
+    if parts == 0 || planes.len() < parts {
+        return fallback();
+    }
+    let (mut lo, mut hi) = (0u64, planes.iter().flatten().sum::<u64>());
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        if greedy_cuts(planes, parts, mid).is_some() { hi = mid } else { lo = mid + 1 }
+    }
+    greedy_cuts(planes, parts, lo).unwrap_or_else(fallback)
+}
+
+/// Cuts with no part over `bound` in any component, exactly `parts` parts of
+/// at least one plane each, or `None` if that takes more parts.
+fn greedy_cuts(planes: &[Vec<u64>], parts: usize, bound: u64) -> Option<Vec<u16>> {
+    let n = planes.len();
+    let mut cuts = vec![0u16];
+    let mut acc = vec![0u64; planes.first().map_or(0, Vec::len)];
+    for (i, plane) in planes.iter().enumerate() {
+        let started = usize::from(*cuts.last().unwrap_or(&0)) < i;
+        let over = acc.iter().zip(plane).any(|(a, p)| a + p > bound);
+        // Cut when this part is full, or when every part still to come needs a plane.
+        if started && (over || n - i == parts - cuts.len()) {
+            if cuts.len() == parts {
+                return None;
+            }
+            cuts.push(i as u16);
+            acc.iter_mut().for_each(|a| *a = 0);
+        }
+        if plane.iter().any(|&p| p > bound) {
+            return None;
+        }
+        acc.iter_mut().zip(plane).for_each(|(a, p)| *a += p);
+    }
+    cuts.push(n as u16);
+    (cuts.len() == parts + 1).then_some(cuts)
+}
+
 /// The paper's driving axis: the one along which the sphere counts of the
 /// node layers vary most (coefficient of variation; ties to the lowest axis).
 pub fn driving_axis(scene: &Scene, array: [u16; 3]) -> Result<u8, HostError> {
@@ -279,7 +380,83 @@ pub fn tiles(width: u16, height: u16, n: usize) -> Vec<[u16; 4]> {
 
 #[cfg(test)]
 mod tests {
-    use super::equal_cost_cuts;
+    use super::{Partition, bottleneck_cuts, equal_cost_cuts};
+    use proptest::prelude::*;
+
+    /// The largest per-component sum of any part.
+    fn worst(planes: &[Vec<u64>], cuts: &[u16]) -> u64 {
+        cuts.windows(2)
+            .flat_map(|w| {
+                let part = &planes[usize::from(w[0])..usize::from(w[1])];
+                (0..planes[0].len()).map(move |j| part.iter().map(|p| p[j]).sum::<u64>())
+            })
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Every way to cut `n` planes into `parts` non-empty parts.
+    fn all_cuts(n: usize, parts: usize) -> Vec<Vec<u16>> {
+        if parts == 1 {
+            return vec![vec![0, n as u16]];
+        }
+        (parts - 1..n)
+            .flat_map(|last| {
+                all_cuts(last, parts - 1).into_iter().map(move |mut c| {
+                    c.push(n as u16);
+                    c
+                })
+            })
+            .collect()
+    }
+
+    proptest! {
+        #[test]
+        fn bottleneck_cuts_are_optimal_against_every_cut(
+            planes in (1usize..=3).prop_flat_map(|k| prop::collection::vec(prop::collection::vec(0u64..50, k), 1..=9)),
+            parts in 1usize..=4,
+        ) {
+            prop_assume!(parts <= planes.len());
+            let cuts = bottleneck_cuts(&planes, parts);
+            prop_assert_eq!(cuts.len(), parts + 1);
+            prop_assert_eq!(cuts[0], 0);
+            prop_assert_eq!(usize::from(cuts[parts]), planes.len());
+            prop_assert!(cuts.windows(2).all(|w| w[0] < w[1]), "{:?}", cuts);
+            let best = all_cuts(planes.len(), parts).iter().map(|c| worst(&planes, c)).min().unwrap();
+            prop_assert_eq!(worst(&planes, &cuts), best);
+        }
+    }
+
+    #[test]
+    fn fitted_partition_evens_out_rows_of_a_concentrated_cost() {
+        // Nearly all the cost in an 8^3 block off-centre in a 16^3 grid, as
+        // when the spheres fill part of the space.
+        let grid = [16u16; 3];
+        let mut cost = vec![1u64; 16 * 16 * 16];
+        for z in 2..10 {
+            for y in 6..14 {
+                for x in 3..11 {
+                    cost[x + 16 * (y + 16 * z)] = 1000;
+                }
+            }
+        }
+        let even = Partition::even(grid, [4; 3], 2).unwrap();
+        let fitted = Partition::fitted(grid, [4; 3], 2, &cost).unwrap();
+        let rows = |p: &Partition| -> Vec<u64> {
+            p.row_layers(grid, &cost).iter().map(|l| l.iter().sum()).collect()
+        };
+        let (e, f) = (rows(&even), rows(&fitted));
+        let mean = e.iter().sum::<u64>() as f64 / e.len() as f64;
+        assert_eq!(e.iter().sum::<u64>(), f.iter().sum::<u64>());
+        let (emax, fmax) = (*e.iter().max().unwrap() as f64 / mean, *f.iter().max().unwrap() as f64 / mean);
+        assert!(emax > 2.0 && fmax < 1.1, "busiest row / mean: even {emax:.2}, fitted {fmax:.2}");
+        // Whole planes across the driving axis; every node keeps a cube per axis.
+        for a in 0..3 {
+            assert!(fitted.cuts[a].windows(2).all(|w| w[0] < w[1]) && fitted.cuts[a][4] == 16);
+        }
+        for row in fitted.row_cuts.as_ref().unwrap() {
+            assert!(row.windows(2).all(|w| w[0] < w[1]) && row[0] == 0 && row[4] == 16, "{row:?}");
+        }
+    }
 
     #[test]
     fn equal_cost_cuts_split_evenly_and_keep_a_layer_each() {

@@ -56,6 +56,30 @@ impl Initial {
     }
 }
 
+/// How the grid is first cut into subregions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Layout {
+    /// Even boxes (the paper's start).
+    Even,
+    /// Cut to a preview: the host renders the frame at a quarter of the
+    /// resolution per axis with the node kernels, measures each cube's cost
+    /// and fits the partition to it ([`Partition::fitted`]; beyond the paper).
+    Preview,
+}
+
+impl Layout {
+    /// The name on the command line and in summaries.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Even => "even",
+            Self::Preview => "preview",
+        }
+    }
+}
+
+/// Pixels per preview pixel along each image axis.
+pub const PREVIEW_STRIDE: u16 = 4;
+
 /// How to render.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RenderOptions {
@@ -73,6 +97,8 @@ pub struct RenderOptions {
     pub balance: Option<Balance>,
     /// Driving axis; `None` picks the paper's (most varied sphere counts).
     pub driving_axis: Option<u8>,
+    /// How the grid is first cut.
+    pub layout: Layout,
 }
 
 impl RenderOptions {
@@ -87,6 +113,7 @@ impl RenderOptions {
             sim: SimConfig::new(array),
             balance: None,
             driving_axis: None,
+            layout: Layout::Even,
         }
     }
 }
@@ -150,19 +177,33 @@ impl Array for Board {
     }
 }
 
-/// The even partition of `scene` over `opts.array` along the chosen driving axis.
-pub fn even_partition(scene: &Scene, opts: &RenderOptions) -> Result<Partition, HostError> {
+/// The starting partition of `scene` over `opts.array` along the chosen
+/// driving axis, cut as `opts.layout` says.
+pub fn initial_partition(scene: &Scene, opts: &RenderOptions) -> Result<Partition, HostError> {
     let axis = match opts.driving_axis {
         Some(a) if a > 2 => return Err(input(format!("driving axis {a} must be 0, 1 or 2"))),
         Some(a) => a,
         None => crate::partition::driving_axis(scene, opts.array)?,
     };
-    Partition::even(scene.grid, opts.array, axis)
+    match opts.layout {
+        Layout::Even => Partition::even(scene.grid, opts.array, axis),
+        Layout::Preview => {
+            // Checked first so a bad array gets the even partition's error.
+            Partition::even(scene.grid, opts.array, axis)?;
+            let [w, h] = opts.size.map(|n| n.div_ceil(PREVIEW_STRIDE).max(1));
+            // Entry tiles create each ray on its entry cube's node: that is
+            // work of the cube. Other modes spread creation by tiles.
+            let creation = opts.initial == Initial::Entry;
+            let costs = crate::direct::cost_map(scene, w, h, &opts.sim.cost, creation)
+                .map_err(|e| e.context("the preview for --layout preview"))?;
+            Partition::fitted(scene.grid, opts.array, axis, &costs)
+        }
+    }
 }
 
-/// Renders `scene` on the in-memory board with the even partition.
+/// Renders `scene` on the in-memory board with its starting partition.
 pub fn render_sim(scene: &Scene, opts: &RenderOptions) -> Result<RenderResult, HostError> {
-    render_partitioned(scene, opts, even_partition(scene, opts)?)
+    render_partitioned(scene, opts, initial_partition(scene, opts)?)
 }
 
 /// Renders `scene` on the in-memory board with a given partition.

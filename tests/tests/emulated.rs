@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use host_tool::backend::{Backend, render};
 use host_tool::qemu::{QEMU, QemuArray};
-use host_tool::render::{Array, RenderOptions, check_frame, even_partition, render_on, render_sim};
+use host_tool::render::{Array, RenderOptions, check_frame, initial_partition, render_on, render_sim};
 use host_tool::scene::Scene;
 use host_tool::serial::SerialArray;
 use link_proto::{Balance, SlidePolicy};
@@ -75,7 +75,7 @@ fn qemu_array_matches_the_in_memory_board() {
 
 /// One host session on running boards: connect, check, render.
 fn session(ptys: &[String], s: &Scene, opts: &RenderOptions) -> host_tool::render::RenderResult {
-    let partition = even_partition(s, opts).expect("partition");
+    let partition = initial_partition(s, opts).expect("partition");
     let names = (0..ptys.len()).map(|i| format!("node {i}")).collect();
     let mut array = SerialArray::open(ptys, names, Duration::from_secs(30)).expect("ptys open");
     array.connect().expect("every node says hello");
@@ -110,7 +110,7 @@ fn a_frozen_node_is_named_after_the_time_out() {
     let s = scene();
     let opts = options(None);
     let qemu = QemuArray::launch(opts.array, &firmware).expect("emulators start");
-    let partition = even_partition(&s, &opts).expect("partition");
+    let partition = initial_partition(&s, &opts).expect("partition");
     let names = (0..8).map(|i| format!("node {i}")).collect();
     // Long enough that eight emulators starving on two cores are not taken
     // for dead; far below the test's bound.

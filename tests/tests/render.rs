@@ -3,7 +3,7 @@
 
 use host_tool::compare::compare;
 use host_tool::frame::to_srgb8;
-use host_tool::render::{Initial, RenderOptions, render_sim};
+use host_tool::render::{Initial, Layout, RenderOptions, render_sim};
 use host_tool::scene::{Light, Scene, SphereDesc};
 use host_tool::{direct, reference};
 
@@ -182,6 +182,34 @@ fn sliding_boundaries_keep_the_image_bit_identical() {
         assert_eq!(r.frame.rays_created, r.frame.rays_terminated, "{array:?}");
         assert!(r.frame.slides.len() > 5, "{array:?}: only {} slides", r.frame.slides.len());
         assert!(r.frame.sums == want.sums, "{array:?}: sliding changed the image");
+    }
+}
+
+#[test]
+fn a_partition_fitted_to_a_preview_keeps_the_image_bit_identical() {
+    let s = scene(0.6, 3);
+    let size = [40, 32];
+    let want = direct::render(&s, size[0], size[1]).unwrap();
+    for (array, initial, slide) in [
+        ([4, 4, 4], Initial::Entry, false),
+        ([3, 2, 5], Initial::Parallel, false),
+        ([2, 3, 4], Initial::Entry, true),
+    ] {
+        let mut opts = RenderOptions::new(array);
+        opts.size = size;
+        opts.initial = initial;
+        opts.layout = Layout::Preview;
+        opts.balance = slide.then_some(link_proto::Balance {
+            interval: 1_000_000,
+            threshold: 50 << 16,
+            step: 1,
+            policy: link_proto::SlidePolicy::Paper,
+        });
+        let r = render_sim(&s, &opts).unwrap_or_else(|e| panic!("{array:?}: {e}"));
+        let even = host_tool::partition::Partition::even(s.grid, array, r.partition.driving_axis).unwrap();
+        assert!(r.partition.row_cuts.is_some() && r.partition != even, "{array:?}: not fitted");
+        assert_eq!(r.frame.rays_created, r.frame.rays_terminated, "{array:?}");
+        assert!(r.frame.sums == want.sums, "{array:?}: the fitted partition changed the image");
     }
 }
 
