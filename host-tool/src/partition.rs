@@ -52,10 +52,15 @@ impl Partition {
         cost: &[u64],
     ) -> Result<Self, HostError> {
         let mut p = Self::even(grid, array, driving_axis)?;
-        let parts = usize::from(array[usize::from(driving_axis)]);
-        let rows = p.row_layers(grid, cost).iter().map(|layer| equal_cost_cuts(layer, parts)).collect();
-        p.row_cuts = Some(rows);
+        p.cut_rows(grid, cost);
         Ok(p)
+    }
+
+    /// Cuts every row along the driving axis where its cost splits evenly.
+    fn cut_rows(&mut self, grid: [u16; 3], cost: &[u64]) {
+        let parts = usize::from(self.array[usize::from(self.driving_axis)]);
+        let rows = self.row_layers(grid, cost).iter().map(|layer| equal_cost_cuts(layer, parts)).collect();
+        self.row_cuts = Some(rows);
     }
 
     /// A partition fitted to a per-cube cost map (x fastest). The planes across
@@ -89,9 +94,7 @@ impl Partition {
             }
             (p, best) = (next, busiest);
         }
-        let parts = usize::from(array[d]);
-        p.row_cuts =
-            Some(p.row_layers(grid, cost).iter().map(|layer| equal_cost_cuts(layer, parts)).collect());
+        p.cut_rows(grid, cost);
         Ok(p)
     }
 
