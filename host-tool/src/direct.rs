@@ -68,13 +68,8 @@ pub fn cost_map(
     if creation {
         let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
         let camera = PixelBasis::new(&scene.camera(), width, height).msg();
-        for y in 0..height {
-            for x in 0..width {
-                let line = primary_line(&camera, x, y).map_err(|e| input(format!("camera: {e:?}")))?;
-                if let Some(walk) = DigitalLine::enter(&line, &grid) {
-                    costs.add(walk.cell(), cost.create);
-                }
-            }
+        for cell in crate::entry::entry_cells(&camera, &grid, [width, height]).into_iter().flatten() {
+            costs.add(cell, cost.create);
         }
     }
     Ok(costs.map)

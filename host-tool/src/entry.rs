@@ -10,6 +10,7 @@
 //! in the image; a ray that enters elsewhere (through a side face, or across
 //! a tile's rounded edge) is passed on as in the parallel mode.
 
+use link_proto::CameraMsg;
 use node_fw::camera::primary_line;
 use node_fw::{DigitalLine, Grid};
 
@@ -37,15 +38,10 @@ pub fn entry_tiles(
         return regular();
     }
     let [w, h] = size.map(usize::from);
-    let camera = basis.msg();
-    // The array coordinate of each pixel's entry node, or None for a miss:
-    // the entry cube the creating node itself will compute.
-    let coords: Vec<Option<[u16; 3]>> = (0..w * h)
-        .map(|i| {
-            let line = primary_line(&camera, (i % w) as u16, (i / w) as u16).ok()?;
-            let cell = DigitalLine::enter(&line, &cubes)?.cell();
-            Some(partition.coord(partition.owner_of(cell.map(|c| f64::from(c) + 0.5), grid)))
-        })
+    // The array coordinate of each pixel's entry node, or None for a miss.
+    let coords: Vec<Option<[u16; 3]>> = entry_cells(&basis.msg(), &cubes, size)
+        .into_iter()
+        .map(|cell| Some(partition.coord(partition.owner_of(cell?.map(|c| f64::from(c) + 0.5), grid))))
         .collect();
     if coords.iter().all(Option::is_none) {
         return regular();
@@ -64,6 +60,19 @@ pub fn entry_tiles(
                 return [0; 4];
             }
             [col.0, row.0, col.1, row.1].map(|v| v as u16)
+        })
+        .collect()
+}
+
+/// Per pixel of a `size` image (row by row), the cube where its initial ray
+/// enters `grid`, or `None` if it misses: the cube the creating node itself
+/// computes, with the same exact arithmetic.
+pub fn entry_cells(camera: &CameraMsg, grid: &Grid, size: [u16; 2]) -> Vec<Option<[i32; 3]>> {
+    let [w, h] = size.map(usize::from);
+    (0..w * h)
+        .map(|i| {
+            let line = primary_line(camera, (i % w) as u16, (i / w) as u16).ok()?;
+            Some(DigitalLine::enter(&line, grid)?.cell())
         })
         .collect()
 }

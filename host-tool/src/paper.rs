@@ -199,7 +199,7 @@ fn preview(
 }
 
 /// Boundaries perpendicular to the driving axis (one per adjacent node pair along it).
-fn boundaries(p: &crate::partition::Partition) -> f64 {
+fn boundaries(p: &Partition) -> f64 {
     let d = usize::from(p.driving_axis);
     let along = f64::from(p.array[d]);
     p.array.iter().map(|&n| f64::from(n)).product::<f64>() / along * (along - 1.0)

@@ -111,19 +111,15 @@ impl Direction {
         // |c| < 2^41: squares below 2^82, their sum below 2^84, its root below 2^42.
         let len2: u128 = v.iter().map(|&c| wide::square(c.unsigned_abs())).sum();
         let len = u64::try_from(wide::isqrt(len2)).map_err(|_| Error::OutOfRange(Field::Direction))?;
-        // len is in [2^40, 2^42) and |c| <= len, so the reciprocal applies.
-        let by_len = wide::Divisor30::new(len);
+        // len is in [2^40, 2^42) and |c| <= len, so the reciprocal applies
+        // and every quotient is at most 2^30.
+        let by_len = wide::Divisor30::new(len).ok_or(Error::OutOfRange(Field::Direction))?;
         let mut raw = [0i32; 3];
         for (out, &c) in raw.iter_mut().zip(&v) {
             // c 2^30 / len, truncated toward zero.
-            let q = match by_len {
-                Some(by_len) => by_len.div_shl30(c.unsigned_abs()),
-                None => wide::div_shl30(c.unsigned_abs(), len),
-            };
+            let q = by_len.div_shl30(c.unsigned_abs()).and_then(|q| i32::try_from(q).ok());
             let q = q.ok_or(Error::OutOfRange(Field::Direction))?;
-            let q = i64::try_from(q).map_err(|_| Error::OutOfRange(Field::Direction))?;
-            *out =
-                i32::try_from(if c < 0 { -q } else { q }).map_err(|_| Error::OutOfRange(Field::Direction))?;
+            *out = if c < 0 { -q } else { q };
         }
         Self::from_bits(raw)
     }

@@ -32,7 +32,7 @@ pub fn isqrt(n: u128) -> u128 {
 }
 
 /// `floor(sqrt(n))` of a 64-bit value.
-pub fn isqrt64(n: u64) -> u64 {
+fn isqrt64(n: u64) -> u64 {
     match u32::try_from(n) {
         Ok(n) => u64::from(n.isqrt()),
         Err(_) => {
@@ -65,20 +65,6 @@ fn tangent_step(n: u128, a: u64) -> u64 {
     let d = (n - square(a)) as u64;
     let y = a + d / (2 * a);
     if (y - a) * (y + a) > d { y - 1 } else { y }
-}
-
-/// `floor(c 2^30 / d)`, at most `2^30`, by two 64-bit long-division steps
-/// (`c <= d < 2^43`, `d > 0`), or `None` outside that range.
-#[inline]
-pub fn div_shl30(c: u64, d: u64) -> Option<u64> {
-    if c > d || d >> 43 != 0 || d == 0 {
-        return None;
-    }
-    let high = c << 21;
-    let (q1, r1) = (high / d, high % d);
-    // r1 < d < 2^43, so r1 2^9 < 2^52.
-    let q2 = (r1 << 9) / d;
-    Some((q1 << 9) + q2)
 }
 
 /// Division of `c 2^30` by a fixed `d` in `[2^40, 2^42]` for `c <= d`, by
@@ -147,14 +133,6 @@ mod tests {
 
     #[test]
     fn quotients_at_the_edges() {
-        let top = (1u64 << 43) - 1;
-        for (c, d) in [(0, 1), (1, 1), (top, top), (top - 1, top), (1, top), (1 << 41, (1 << 41) + 3)] {
-            let want = (u128::from(c) << 30) / u128::from(d);
-            assert_eq!(div_shl30(c, d).map(u128::from), Some(want), "{c} / {d}");
-        }
-        assert_eq!(div_shl30(2, 1), None);
-        assert_eq!(div_shl30(1, 1 << 43), None);
-        assert_eq!(div_shl30(0, 0), None);
         for d in [1u64 << 40, (1 << 40) + 1, (1 << 42) - 1, 1 << 42, 3 << 40] {
             let v = Divisor30::new(d).unwrap();
             for c in [0, 1, d / 3, d - 1, d] {
@@ -191,13 +169,6 @@ mod tests {
         fn squares_are_exact(a in any::<u64>(), shift in 0u32..64) {
             let a = a >> shift;
             prop_assert_eq!(square(a), u128::from(a) * u128::from(a));
-        }
-
-        #[test]
-        fn quotients_are_exact(c in any::<u64>(), d in 1u64..1 << 43, shift in 0u32..43) {
-            let d = (d >> shift).max(1);
-            let c = c % (d + 1);
-            prop_assert_eq!(div_shl30(c, d).map(u128::from), Some((u128::from(c) << 30) / u128::from(d)));
         }
     }
 }

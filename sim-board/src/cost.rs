@@ -28,9 +28,9 @@ impl Default for CostModel {
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
     /// test) 115.2; a sphere test over a mostly-missing list 224.0; a walk's
     /// set-up (the received ray's line checked, the walk resumed) 767.9; a
-    /// shaded hit with one light and a mirror 15 619.3 (the surface and both
+    /// shaded hit with one light and a mirror 15 535.8 (the surface and both
     /// children, evaluated once to count and once to spawn them); an initial
-    /// ray (pixel line, ray, entry cube) 3 245.8; one end of a ray message
+    /// ray (pixel line, ray, entry cube) 3 231.8; one end of a ray message
     /// through a reliable channel, acks included, 4 534.0, and of a ray reply
     /// 2 081.6, which stands for every short message (the UART's bytes are
     /// the link model's).
@@ -39,8 +39,8 @@ impl Default for CostModel {
             cube_step: 115,
             sphere_test: 224,
             trace: 768,
-            shade: 15_619,
-            create: 3_246,
+            shade: 15_536,
+            create: 3_232,
             ray_message: 4_534,
             short_message: 2_082,
         }
