@@ -29,7 +29,9 @@ fn a_missing_device_is_a_serial_error() {
 fn a_node_of_another_protocol_version_is_refused() {
     let (mut master, slave) = TTYPort::pair().expect("a pty pair");
     let path = slave.name().expect("pty has a name");
-    drop(slave);
+    // The slave stays open until the host has its own: with no slave open,
+    // a write to the master can fail, the fake node would stop and drop the
+    // master, and the device would vanish before the host opens it.
     // A node from the future: it says hello with version 99, over and over,
     // until the host is done (the pty lasts as long as this end is open).
     let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
@@ -51,6 +53,7 @@ fn a_node_of_another_protocol_version_is_refused() {
     });
     let opts = RenderOptions::new([1, 1, 1]);
     let err = render_serial(&scene(), &opts, &[path], Duration::from_secs(5)).expect_err("refused");
+    drop(slave);
     done.store(true, std::sync::atomic::Ordering::Relaxed);
     assert_eq!(err.exit_code(), 31, "{err}");
     assert!(err.to_string().contains("version 99"), "{err}");
