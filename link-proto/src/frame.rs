@@ -1,4 +1,8 @@
-//! Framing: `0x00 ++ COBS(postcard(frame) ++ crc32c_le) ++ 0x00`.
+//! Framing: `0x00 ++ COBS(postcard(frame) ++ [ack] ++ crc32c_le) ++ 0x00`.
+//!
+//! `ack` is the optional piggybacked acknowledgement ([`Frame::ack`]), a
+//! postcard `u16` after the body: present exactly when bytes remain between
+//! the body and the CRC.
 //!
 //! The leading zero means a frame cut short by a lost byte run damages only
 //! itself: the next frame starts clean. The CRC sits inside the COBS payload, so a
@@ -16,7 +20,9 @@ use serde::Deserialize;
 const CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
 const CRC_LEN: usize = 4;
 
-/// Largest postcard body plus CRC of any frame.
+/// Largest postcard body, acknowledgement trailer and CRC of any frame
+/// (`POSTCARD_MAX_SIZE` counts the skipped `ack` field as an `Option<u16>`,
+/// a byte more than its trailer).
 pub const MAX_PAYLOAD_LEN: usize = Frame::POSTCARD_MAX_SIZE + CRC_LEN;
 
 /// Largest encoded frame on the wire, both zero delimiters included.
@@ -50,7 +56,11 @@ pub enum DecodeError {
 /// Encodes `frame` into `out`, returning the number of bytes written.
 pub fn encode_frame(frame: &Frame, out: &mut [u8]) -> Result<usize, EncodeError> {
     let mut raw = [0u8; MAX_PAYLOAD_LEN];
-    let body_len = postcard::to_slice(frame, &mut raw).map_err(|_| EncodeError::BufferTooSmall)?.len();
+    let mut body_len = postcard::to_slice(frame, &mut raw).map_err(|_| EncodeError::BufferTooSmall)?.len();
+    if let Some(ack) = frame.ack {
+        let trailer = raw.get_mut(body_len..).ok_or(EncodeError::BufferTooSmall)?;
+        body_len += postcard::to_slice(&ack, trailer).map_err(|_| EncodeError::BufferTooSmall)?.len();
+    }
     let crc = CRC.checksum(raw.get(..body_len).unwrap_or_default());
     let payload_len = body_len + CRC_LEN;
     raw.get_mut(body_len..payload_len)
@@ -139,9 +149,21 @@ fn decode_payload(encoded: &mut [u8]) -> Result<Frame, DecodeError> {
     // Straight from the deserializer: `take_from_bytes` moves the frame
     // through two more temporaries, each a byte-wise copy on a Cortex-M.
     let mut de = postcard::Deserializer::from_bytes(body);
-    let frame = Frame::deserialize(&mut de).map_err(|_| DecodeError::Body)?;
+    let mut frame = Frame::deserialize(&mut de).map_err(|_| DecodeError::Body)?;
     match de.finalize() {
         Ok([]) => Ok(frame),
+        Ok(trailer) => {
+            frame.ack = Some(decode_ack(trailer)?);
+            Ok(frame)
+        }
+        Err(_) => Err(DecodeError::Body),
+    }
+}
+
+/// Decodes the acknowledgement trailer, which must fill `trailer` exactly.
+fn decode_ack(trailer: &[u8]) -> Result<u16, DecodeError> {
+    match postcard::take_from_bytes::<u16>(trailer) {
+        Ok((ack, [])) => Ok(ack),
         _ => Err(DecodeError::Body),
     }
 }

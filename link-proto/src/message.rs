@@ -11,13 +11,29 @@
 use postcard::experimental::max_size::MaxSize;
 use serde::{Deserialize, Serialize};
 
-/// One frame on a link: a per-link sequence number and the message it carries.
+/// One frame on a link: a per-link sequence number, the message it carries,
+/// and perhaps an acknowledgement of the opposite direction's frames.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
 pub struct Frame {
     /// Sequence number of this frame on its link (wraps at 2^16).
     pub seq: u16,
     /// The message.
     pub msg: Message,
+    /// A cumulative acknowledgement riding on this frame, as [`Message::Ack`]
+    /// would carry it, so that a reply needs no acknowledgement frame of its
+    /// own. It travels as a trailer after the postcard body (see
+    /// [`crate::frame`]), not as a serde field: a frame without one decodes
+    /// as before, so peers of other protocol versions still read each
+    /// other's hellos.
+    #[serde(skip)]
+    pub ack: Option<u16>,
+}
+
+impl Frame {
+    /// A frame with no acknowledgement riding on it.
+    pub const fn new(seq: u16, msg: Message) -> Self {
+        Self { seq, msg, ack: None }
+    }
 }
 
 /// Every message the host and the nodes exchange.

@@ -174,7 +174,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
 }
 
 fn arb_frame() -> impl Strategy<Value = Frame> {
-    (any::<u16>(), arb_message()).prop_map(|(seq, msg)| Frame { seq, msg })
+    (any::<u16>(), arb_message(), any::<Option<u16>>()).prop_map(|(seq, msg, ack)| Frame { seq, msg, ack })
 }
 
 proptest! {
@@ -238,14 +238,14 @@ fn oversize_is_reported_once_then_resyncs() {
     let mut dec = FrameDecoder::new();
     let junk = vec![0x55u8; MAX_FRAME_LEN * 3];
     assert_eq!(decode_all(&mut dec, &junk), vec![Err(DecodeError::Oversize)]);
-    let frame = Frame { seq: 1, msg: Message::Ack(9) };
+    let frame = Frame::new(1, Message::Ack(9));
     assert_eq!(decode_all(&mut dec, &encode(&frame)), vec![Ok(frame)]);
 }
 
 #[test]
 fn short_output_buffer_is_an_error() {
     let mut out = [0u8; 3];
-    let frame = Frame { seq: 1, msg: Message::Nak(2) };
+    let frame = Frame::new(1, Message::Nak(2));
     assert_eq!(encode_frame(&frame, &mut out), Err(EncodeError::BufferTooSmall));
 }
 
@@ -282,8 +282,46 @@ fn largest_message_fits_the_frame_buffer() {
         class: u16::MAX,
         tag: u16::MAX,
     };
-    let frame = Frame { seq: u16::MAX, msg: Message::Ray(ray) };
+    let frame = Frame { seq: u16::MAX, msg: Message::Ray(ray), ack: Some(u16::MAX) };
     let bytes = encode(&frame);
     assert!(bytes.len() <= MAX_FRAME_LEN);
     println!("largest ray frame {} bytes, MAX_FRAME_LEN {}", bytes.len(), MAX_FRAME_LEN);
+}
+
+/// A frame's payload (COBS input) built by hand: `body ++ trailer ++ crc`.
+fn payload_frame(body: &[u8], trailer: &[u8]) -> Vec<u8> {
+    let mut payload = [body, trailer].concat();
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI).checksum(&payload);
+    payload.extend_from_slice(&crc.to_le_bytes());
+    let mut out = vec![0u8];
+    let mut cobs = vec![0u8; payload.len() + payload.len() / 254 + 2];
+    let n = link_proto::cobs::encode(&payload, &mut cobs).unwrap();
+    out.extend_from_slice(&cobs[..n]);
+    out.push(0);
+    out
+}
+
+#[test]
+fn a_frame_without_a_trailer_decodes_as_before_the_trailer_existed() {
+    // The body alone, as a peer that predates the acknowledgement trailer writes it.
+    let mut buf = [0u8; 8];
+    let body = postcard::to_slice(&(7u16, Message::Space), &mut buf).unwrap().to_vec();
+    let mut dec = FrameDecoder::new();
+    let got = decode_all(&mut dec, &payload_frame(&body, &[]));
+    assert_eq!(got, vec![Ok(Frame::new(7, Message::Space))]);
+    // The same with a trailer: 300 is the two-byte varint [0xac, 0x02].
+    let got = decode_all(&mut dec, &payload_frame(&body, &[0xac, 0x02]));
+    assert_eq!(got, vec![Ok(Frame { seq: 7, msg: Message::Space, ack: Some(300) })]);
+}
+
+#[test]
+fn a_trailer_that_is_not_exactly_one_acknowledgement_is_refused() {
+    let mut buf = [0u8; 8];
+    let body = postcard::to_slice(&(7u16, Message::Space), &mut buf).unwrap().to_vec();
+    let mut dec = FrameDecoder::new();
+    // An unfinished varint, one byte too many, and a value above u16::MAX.
+    for trailer in [&[0x80u8][..], &[0x01, 0x02], &[0xff, 0xff, 0x04]] {
+        let got = decode_all(&mut dec, &payload_frame(&body, trailer));
+        assert_eq!(got, vec![Err(DecodeError::Body)], "trailer {trailer:02x?}");
+    }
 }

@@ -143,7 +143,7 @@ impl<const W: usize> Channel<W> {
 
     /// Queues a data message; hands it back when the window is full.
     pub fn send(&mut self, msg: Message) -> Result<(), Message> {
-        let frame = Frame { seq: self.next_seq, msg };
+        let frame = Frame::new(self.next_seq, msg);
         match self.unacked.push_back(frame) {
             Ok(()) => {
                 self.next_seq = self.next_seq.wrapping_add(1);
@@ -175,6 +175,13 @@ impl<const W: usize> Channel<W> {
     }
 
     fn take(&mut self, frame: Frame, deliver: &mut impl FnMut(Message) -> bool) {
+        // A piggybacked ack counts as a standalone one would, whatever the
+        // frame it rides on.
+        if let Some(seq) = frame.ack
+            && self.synced
+        {
+            self.acknowledged(seq);
+        }
         match frame.msg {
             Message::Sync(incarnation) => self.peer_synced(incarnation),
             Message::SyncAck(incarnation) => {
@@ -271,25 +278,38 @@ impl<const W: usize> Channel<W> {
         {
             self.sync_ack_due = None;
         }
-        if let Some(control) = self.control_due.clone()
-            && write_control(control, &mut buf, &mut write)
-        {
-            self.control_due = None;
-        }
         self.track_progress(now);
-        if !self.synced {
-            self.announce(now, &mut buf, &mut write);
-            return;
-        }
-        if !self.unacked.is_empty() && now.saturating_sub(self.progress_at) >= self.timeout {
+        if self.synced && !self.unacked.is_empty() && now.saturating_sub(self.progress_at) >= self.timeout {
             // No progress for a whole time-out: go back to the oldest frame.
             self.resend_from = 0;
             self.progress_at = now;
         }
-        while let Some(frame) = self.unacked.iter().nth(self.resend_from) {
+        // An ack rides on the first data frame that goes out; only without
+        // one (or for a nak) does it take a frame of its own.
+        let data_due = self.synced && self.resend_from < self.unacked.len();
+        if let Some(control) = self.control_due.clone()
+            && !(data_due && matches!(control, Message::Ack(_)))
+            && write_control(control, &mut buf, &mut write)
+        {
+            self.control_due = None;
+        }
+        if !self.synced {
+            self.announce(now, &mut buf, &mut write);
+            return;
+        }
+        while let Some(frame) = self.unacked.iter_mut().nth(self.resend_from) {
+            // Set afresh on every write: an ack from an earlier write may
+            // belong to a peer incarnation that has since restarted.
+            frame.ack = match self.control_due {
+                Some(Message::Ack(seq)) => Some(seq),
+                _ => None,
+            };
             let Ok(n) = encode_frame(frame, &mut buf) else { break };
             if !write(buf.get(..n).unwrap_or_default()) {
                 break;
+            }
+            if frame.ack.is_some() {
+                self.control_due = None;
             }
             if self.resend_from < self.written {
                 self.stats.retransmitted += 1;
@@ -335,5 +355,5 @@ impl<const W: usize> Channel<W> {
 
 /// Writes one unsequenced control frame; whether it went out whole.
 fn write_control(msg: Message, buf: &mut [u8], write: &mut impl FnMut(&[u8]) -> bool) -> bool {
-    encode_frame(&Frame { seq: 0, msg }, buf).is_ok_and(|n| write(buf.get(..n).unwrap_or_default()))
+    encode_frame(&Frame::new(0, msg), buf).is_ok_and(|n| write(buf.get(..n).unwrap_or_default()))
 }

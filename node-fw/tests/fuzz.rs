@@ -208,7 +208,7 @@ proptest! {
         }
         let mut buf = [0u8; MAX_FRAME_LEN];
         for (now, (seq, msg)) in frames.into_iter().enumerate() {
-            let n = encode_frame(&Frame { seq, msg }, &mut buf).unwrap();
+            let n = encode_frame(&Frame::new(seq, msg), &mut buf).unwrap();
             channel.receive(&buf[..n], |_| now % 3 != 0);
             let mut written = 0;
             channel.transmit(now as u64, |bytes| {
@@ -229,7 +229,7 @@ proptest! {
         let results = junk.iter().filter_map(|&b| dec.push(b)).count();
         prop_assert!(results <= zeros + junk.len() / MAX_FRAME_LEN + 1);
         let mut out = [0u8; MAX_FRAME_LEN];
-        let frame = Frame { seq: 9, msg: Message::Space };
+        let frame = Frame::new(9, Message::Space);
         let n = encode_frame(&frame, &mut out).unwrap();
         let got: Vec<_> = out[..n].iter().filter_map(|&b| dec.push(b)).collect();
         prop_assert_eq!(got.last(), Some(&Ok(frame)));

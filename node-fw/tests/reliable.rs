@@ -228,7 +228,7 @@ fn no_data_is_taken_before_the_peers_sync() {
     a.send(msg(0)).unwrap();
     // A data frame as an unsynchronised sender would put it on the wire.
     let mut frame = [0u8; link_proto::MAX_FRAME_LEN];
-    let n = link_proto::encode_frame(&link_proto::Frame { seq: 0, msg: msg(9) }, &mut frame).unwrap();
+    let n = link_proto::encode_frame(&link_proto::Frame::new(0, msg(9)), &mut frame).unwrap();
     let mut got_b = Vec::new();
     b.receive(&frame[..n], |m| {
         got_b.push(m);
@@ -239,4 +239,47 @@ fn no_data_is_taken_before_the_peers_sync() {
     let (mut now, mut got_a) = (0, Vec::new());
     exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
     assert_eq!(got_b, vec![msg(0)]);
+}
+
+/// The frames `c` writes at `now`, decoded.
+fn written(c: &mut Channel<4>, now: u64) -> (Vec<u8>, Vec<link_proto::Frame>) {
+    let mut bytes = Vec::new();
+    c.transmit(now, |f| {
+        bytes.extend_from_slice(f);
+        true
+    });
+    let mut dec = link_proto::FrameDecoder::new();
+    let frames = bytes.iter().filter_map(|&b| dec.push(b)).map(Result::unwrap).collect();
+    (bytes, frames)
+}
+
+#[test]
+fn an_ack_rides_on_the_reply_and_takes_a_frame_only_without_one() {
+    let (mut a, mut b) = pair();
+    let (mut now, mut got_a, mut got_b) = (0, Vec::new(), Vec::new());
+    // Both streams synchronised, nothing owed.
+    a.send(msg(0)).unwrap();
+    b.send(msg(100)).unwrap();
+    exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
+    assert!(!a.busy() && !b.busy());
+
+    // A request, and B's reply to it: one frame each way, the reply carrying
+    // B's acknowledgement of the request.
+    a.send(msg(1)).unwrap();
+    let (request, frames) = written(&mut a, now + 1);
+    assert_eq!(frames.len(), 1);
+    let request_seq = frames[0].seq;
+    b.receive(&request, |_| true);
+    b.send(msg(101)).unwrap();
+    let (reply, frames) = written(&mut b, now + 2);
+    assert_eq!(frames.len(), 1, "no ack frame beside the reply");
+    assert_eq!((&frames[0].msg, frames[0].ack), (&msg(101), Some(request_seq)));
+    a.receive(&reply, |_| true);
+
+    // A has nothing to send back: its ack of the reply takes a frame. Past
+    // A's time-out, that is all it writes: the request left its window.
+    let (_, frames) = written(&mut a, now + 20);
+    assert_eq!(frames.len(), 1, "{frames:?}");
+    assert!(matches!(frames[0].msg, Message::Ack(_)) && frames[0].ack.is_none());
+    assert_eq!(a.stats.retransmitted, 0);
 }

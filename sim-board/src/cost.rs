@@ -30,10 +30,13 @@ impl Default for CostModel {
     /// set-up (the received ray's line checked, the walk resumed) 767.9; a
     /// shaded hit with one light and a mirror 15 535.8 (the surface and both
     /// children, evaluated once to count and once to spawn them); an initial
-    /// ray (pixel line, ray, entry cube) 3 231.8; one end of a ray message
-    /// through a reliable channel, acks included, 4 534.0, and of a ray reply
-    /// 2 081.6, which stands for every short message (the UART's bytes are
-    /// the link model's).
+    /// ray (pixel line, ray, entry cube) 3 231.8. Messages through a reliable
+    /// channel: one end of a hop (the ray, the reply carrying the ray's ack,
+    /// the reply's ack in a frame of its own) 6 089.3, and of a ray reply with
+    /// its ack alone 2 123.3, which stands for every short message; a ray end
+    /// is charged the difference, 3 966 (the UART's bytes are the link
+    /// model's). A sender that has more for the neighbour sends the reply's
+    /// ack on it, so real hops cost up to a short frame less.
     fn default() -> Self {
         Self {
             cube_step: 115,
@@ -41,8 +44,8 @@ impl Default for CostModel {
             trace: 768,
             shade: 15_536,
             create: 3_232,
-            ray_message: 4_534,
-            short_message: 2_082,
+            ray_message: 3_966,
+            short_message: 2_123,
         }
     }
 }

@@ -75,6 +75,6 @@ impl Links for SimLinks<'_> {
 /// Bytes the message takes on the wire as a frame.
 pub fn frame_len(msg: &Message) -> usize {
     let mut buf = [0u8; MAX_FRAME_LEN];
-    let frame = link_proto::Frame { seq: 0, msg: msg.clone() };
+    let frame = link_proto::Frame::new(0, msg.clone());
     encode_frame(&frame, &mut buf).unwrap_or(MAX_FRAME_LEN)
 }

@@ -43,7 +43,7 @@ fn a_node_of_another_protocol_version_is_refused() {
             capacity: Capacity { spheres: 8, refs: 64, cubes: 64, rays: 64 },
         });
         let mut buf = [0u8; MAX_FRAME_LEN];
-        let n = encode_frame(&Frame { seq: 0, msg: hello }, &mut buf).expect("encodes");
+        let n = encode_frame(&Frame::new(0, hello), &mut buf).expect("encodes");
         for _ in 0..1500 {
             if stop.load(std::sync::atomic::Ordering::Relaxed) || master.write_all(&buf[..n]).is_err() {
                 break;
