@@ -41,6 +41,8 @@ use crate::subregion::{Outcome, Query, Subregion, TraceStats};
 
 /// Lights a node holds.
 pub const MAX_LIGHTS: usize = 8;
+/// A hit's evaluated child rays, each with its candidate number.
+type Children = Vec<(u8, RayMsg), { MAX_LIGHTS + 1 }>;
 /// Rays a node may have sent to one neighbour without a reply yet.
 pub const MAX_OUTSTANDING: usize = 4;
 
@@ -572,6 +574,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             any_hit: ray.kind == RayKind::Shadow,
         };
         let mut stats = TraceStats::default();
+        let mut spawned = Children::new();
         let outcome = self.region.trace(&line, &mut walk, &mut best, &query, &mut stats);
         work.traces += 1;
         work.cube_steps += stats.cube_steps;
@@ -605,14 +608,20 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 Stage::Retire(retire(&ray, rgb, ray.credit, 0))
             }
             Outcome::Blocked => Stage::Retire(retire(&ray, [0; 3], ray.credit, 0)),
-            Outcome::Hit(_) => match self.begin_shading(&ray, &line) {
-                Some(stage) => stage,
-                None => return self.fail(ErrorCode::BadRay, ray.pixel, 3),
-            },
+            Outcome::Hit(_) => {
+                work.shades += 1;
+                match self.begin_shading(&ray, &line, &mut spawned) {
+                    Some(stage) => stage,
+                    None => return self.fail(ErrorCode::BadRay, ray.pixel, 3),
+                }
+            }
         };
         if let Some(slot) = self.pool.get_mut(i) {
             slot.ray = ray;
             slot.stage = stage;
+        }
+        if !spawned.is_empty() {
+            self.spawn_evaluated(i, &spawned);
         }
     }
 
@@ -623,22 +632,23 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         Some((Scalar::from_bits(hit.t), sphere))
     }
 
-    /// Counts the children of a hit and folds the ambient term and any child
-    /// resolved at once into the parent's contribution.
-    fn begin_shading(&self, ray: &RayMsg, line: &Line) -> Option<Stage> {
+    /// Evaluates the children of a hit into `spawned` (each with its candidate
+    /// number), counts them to split the credit, and folds the ambient term
+    /// and any child resolved at once into the parent's contribution.
+    fn begin_shading(&self, ray: &RayMsg, line: &Line, spawned: &mut Children) -> Option<Stage> {
         let (t, sphere) = self.hit_sphere(ray)?;
         let sphere = &sphere;
         let surface = Surface::at(line, t, sphere)?;
         let scene = self.scene();
         let mut rgb = scene.ambient(ray, sphere);
-        let mut children = 0u8;
         for k in 0..scene.candidates() {
             match scene.child(ray, line, &surface, sphere, k) {
-                Some(Child::Ray(_)) => children += 1,
+                Some(Child::Ray(child)) => spawned.push((k, child)).ok()?,
                 Some(Child::Done(c)) => rgb = add3(rgb, c),
                 None => {}
             }
         }
+        let children = spawned.len() as u8;
         if children == 0 {
             return Some(Stage::Retire(retire(ray, rgb, ray.credit, 0)));
         }
@@ -646,8 +656,40 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         Some(Stage::Shade { next: 0, children, share, rgb })
     }
 
-    /// Spawns the hit's children while the pool admits them; retires the parent
-    /// once all are out.
+    /// Admits the children `begin_shading` evaluated while the pool has room,
+    /// so a hit is evaluated once; only children the pool refuses now are
+    /// evaluated again later, by [`Self::shade`].
+    fn spawn_evaluated(&mut self, i: u16, spawned: &Children) {
+        let Some(slot) = self.pool.get(i).copied() else { return };
+        let Stage::Shade { children, share, rgb, .. } = slot.stage else { return };
+        let mut next = self.scene().candidates();
+        for &(k, mut child) in spawned {
+            child.credit = share;
+            if self.pool.admit(child, Stage::Trace).is_err() {
+                next = k;
+                break;
+            }
+        }
+        self.shaded_up_to(i, &slot.ray, Stage::Shade { next, children, share, rgb });
+    }
+
+    /// Records how far a hit's children are spawned: the parent retires with
+    /// its own share once all are out.
+    fn shaded_up_to(&mut self, i: u16, ray: &RayMsg, progress: Stage) {
+        let Stage::Shade { next, children, share, rgb } = progress else { return };
+        let stage = if next < self.scene().candidates() {
+            progress
+        } else {
+            let own = ray.credit - u64::from(children) * share;
+            Stage::Retire(retire(ray, rgb, own, children))
+        };
+        if let Some(slot) = self.pool.get_mut(i) {
+            slot.stage = stage;
+        }
+    }
+
+    /// Spawns the rest of a hit's children, evaluated again, while the pool
+    /// admits them; retires the parent once all are out.
     fn shade(&mut self, i: u16, work: &mut Work) {
         let Some(slot) = self.pool.get(i).copied() else { return };
         let Stage::Shade { mut next, children, share, rgb } = slot.stage else { return };
@@ -670,15 +712,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             }
             next += 1;
         }
-        let stage = if next < candidates {
-            Stage::Shade { next, children, share, rgb }
-        } else {
-            let own = ray.credit - u64::from(children) * share;
-            Stage::Retire(retire(&ray, rgb, own, children))
-        };
-        if let Some(slot) = self.pool.get_mut(i) {
-            slot.stage = stage;
-        }
+        self.shaded_up_to(i, &ray, Stage::Shade { next, children, share, rgb });
     }
 
     fn create_initial(&mut self, work: &mut Work) {

@@ -28,13 +28,14 @@ impl Default for CostModel {
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
     /// test) 115.2; a sphere test over a mostly-missing list 224.0; a walk's
     /// set-up (the received ray's line checked, the walk resumed) 767.9; a
-    /// shaded hit with one light and a mirror 15 535.8 (the surface and both
-    /// children, evaluated once to count and once to spawn them); an initial
+    /// shaded hit with one light and a mirror 7 758.0 (the surface and both
+    /// children, evaluated once; a hit waiting for pool room pays again for
+    /// the children it spawns later); an initial
     /// ray (pixel line, ray, entry cube) 3 231.8. Messages through a reliable
     /// channel: one end of a hop (the ray, the reply carrying the ray's ack,
-    /// the reply's ack in a frame of its own) 6 089.3, and of a ray reply with
-    /// its ack alone 2 123.3, which stands for every short message; a ray end
-    /// is charged the difference, 3 966 (the UART's bytes are the link
+    /// the reply's ack in a frame of its own) 6 088.8, and of a ray reply with
+    /// its ack alone 2 126.5, which stands for every short message; a ray end
+    /// is charged the difference, 3 962 (the UART's bytes are the link
     /// model's). A sender that has more for the neighbour sends the reply's
     /// ack on it, so real hops cost up to a short frame less.
     fn default() -> Self {
@@ -42,10 +43,10 @@ impl Default for CostModel {
             cube_step: 115,
             sphere_test: 224,
             trace: 768,
-            shade: 15_536,
+            shade: 7_758,
             create: 3_232,
-            ray_message: 3_966,
-            short_message: 2_123,
+            ray_message: 3_962,
+            short_message: 2_127,
         }
     }
 }

@@ -181,8 +181,9 @@ fn walk_setups(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
 }
 
 /// Shading hits on a mirror sphere lit by one light, as the node does it: the
-/// surface and both children (a shadow ray and a reflection) once to count
-/// the children, and once more to spawn them.
+/// surface and both children (a shadow ray and a reflection), evaluated once
+/// (the node spawns what it evaluated; only a hit the pool cannot take all
+/// children of evaluates the rest again later).
 fn shadings(timer: &mut Timer, grid: &Grid, spheres: &[Sphere]) -> (u64, u64) {
     let header = SceneHeader { grid: [256; 3], ambient: [3000; 3], background: [0; 3], max_depth: 3 };
     let lights = [LightMsg { id: 0, position: [10 << 16, 250 << 16, 10 << 16], color: [32768; 3] }];
@@ -199,11 +200,9 @@ fn shadings(timer: &mut Timer, grid: &Grid, spheres: &[Sphere]) -> (u64, u64) {
         let ray = primary_ray(&l, 0, 1 << 20);
         let start = timer.ticks();
         for _ in 0..10 {
-            for _pass in 0..2 {
-                if let Some(surface) = Surface::at(&l, root.t, s) {
-                    for k in 0..scene.candidates() {
-                        core::hint::black_box(scene.child(&ray, &l, &surface, s, k));
-                    }
+            if let Some(surface) = Surface::at(&l, root.t, s) {
+                for k in 0..scene.candidates() {
+                    core::hint::black_box(scene.child(&ray, &l, &surface, s, k));
                 }
             }
             shaded += 1;
@@ -213,38 +212,52 @@ fn shadings(timer: &mut Timer, grid: &Grid, spheres: &[Sphere]) -> (u64, u64) {
     (ticks, shaded)
 }
 
+/// The two ends of a link, with the incarnations they announce.
+fn channel_pair() -> (Channel<4>, Channel<4>) {
+    let (mut a, mut b) = (Channel::<4>::new(1 << 40), Channel::<4>::new(1 << 40));
+    a.set_incarnation(1);
+    b.set_incarnation(2);
+    (a, b)
+}
+
+/// Moves what `from` has due at `round` over `wire` into `to`.
+fn pass(
+    from: &mut Channel<4>,
+    to: &mut Channel<4>,
+    round: u64,
+    wire: &mut heapless::Vec<u8, 1024>,
+    deliver: impl FnMut(Message) -> bool,
+) {
+    from.transmit(round, |f| wire.extend_from_slice(f).is_ok());
+    to.receive(wire, deliver);
+    wire.clear();
+}
+
 /// Passing each of `rays` over a hop as nodes do: the ray through a reliable
 /// channel pair, the receiver's reply carrying its ack, and the sender's ack
 /// of the reply in a frame of its own, as when it has nothing else for that
 /// neighbour (per hop and end, bytes on the UART not included).
 fn hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
-    let (mut a, mut b) = (Channel::<4>::new(1 << 40), Channel::<4>::new(1 << 40));
-    a.set_incarnation(1);
-    b.set_incarnation(2);
-    let mut wire: heapless::Vec<u8, 1024> = heapless::Vec::new();
-    let mut back: heapless::Vec<u8, 256> = heapless::Vec::new();
+    let (mut a, mut b) = channel_pair();
+    let mut wire = heapless::Vec::new();
     let (mut passed, start) = (0u64, timer.ticks());
     for round in 0..40u64 {
         for ray in rays {
             let _ = a.send(Message::Ray(*ray));
-            a.transmit(round, |f| wire.extend_from_slice(f).is_ok());
             let mut tag = None;
-            b.receive(&wire, |m| {
+            pass(&mut a, &mut b, round, &mut wire, |m| {
                 if let Message::Ray(r) = m {
                     tag = Some(r.tag);
                 }
                 true
             });
-            wire.clear();
             if let Some(tag) = tag {
                 let _ = b.send(Message::RayReply(RayReply { tag, accepted: true }));
             }
-            b.transmit(round, |f| back.extend_from_slice(f).is_ok());
-            a.receive(&back, |m| core::hint::black_box(matches!(m, Message::RayReply(_))));
-            back.clear();
-            a.transmit(round, |f| wire.extend_from_slice(f).is_ok());
-            b.receive(&wire, |_| true);
-            wire.clear();
+            pass(&mut b, &mut a, round, &mut wire, |m| {
+                core::hint::black_box(matches!(m, Message::RayReply(_)))
+            });
+            pass(&mut a, &mut b, round, &mut wire, |_| true);
             passed += 1;
         }
     }
@@ -252,25 +265,20 @@ fn hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     (timer.ticks() - start, 2 * passed)
 }
 
-/// Passing messages made from `rays` (short replies to them) through a
-/// reliable channel pair, both ends and the acks, each in a frame of its own
-/// (per message and end, bytes on the UART not included).
-fn messages(timer: &mut Timer, rays: &[RayMsg], make: impl Fn(&RayMsg) -> Message) -> (u64, u64) {
-    let (mut a, mut b) = (Channel::<4>::new(1 << 40), Channel::<4>::new(1 << 40));
-    a.set_incarnation(1);
-    b.set_incarnation(2);
-    let mut wire: heapless::Vec<u8, 1024> = heapless::Vec::new();
-    let mut back: heapless::Vec<u8, 256> = heapless::Vec::new();
+/// Passing a reply to each of `rays` through a reliable channel pair, both
+/// ends and the ack, each in a frame of its own (per message and end, bytes
+/// on the UART not included).
+fn replies(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
+    let (mut a, mut b) = channel_pair();
+    let mut wire = heapless::Vec::new();
     let (mut passed, start) = (0u64, timer.ticks());
     for round in 0..40u64 {
         for ray in rays {
-            let _ = a.send(make(ray));
-            a.transmit(round, |f| wire.extend_from_slice(f).is_ok());
-            b.receive(&wire, |m| core::hint::black_box(!matches!(m, Message::Hello(_))));
-            wire.clear();
-            b.transmit(round, |f| back.extend_from_slice(f).is_ok());
-            a.receive(&back, |_| true);
-            back.clear();
+            let _ = a.send(Message::RayReply(RayReply { tag: ray.tag, accepted: true }));
+            pass(&mut a, &mut b, round, &mut wire, |m| {
+                core::hint::black_box(!matches!(m, Message::Hello(_)))
+            });
+            pass(&mut b, &mut a, round, &mut wire, |_| true);
             passed += 1;
         }
     }
@@ -353,8 +361,7 @@ fn main() -> ! {
     let _ = writeln!(out, "kernel shade {} {n}", per_unit_x100(ticks, n));
     let (ticks, n) = hops(&mut timer, &rays);
     let _ = writeln!(out, "kernel hop {} {n}", per_unit_x100(ticks, n));
-    let reply = |r: &RayMsg| Message::RayReply(RayReply { tag: r.tag, accepted: true });
-    let (ticks, n) = messages(&mut timer, &rays, reply);
+    let (ticks, n) = replies(&mut timer, &rays);
     let _ = writeln!(out, "kernel reply {} {n}", per_unit_x100(ticks, n));
     let _ = writeln!(out, "kernels done");
     board::exit(true)
