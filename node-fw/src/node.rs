@@ -620,8 +620,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             slot.ray = ray;
             slot.stage = stage;
         }
-        if !spawned.is_empty() {
-            self.spawn_evaluated(i, &spawned);
+        if let Stage::Shade { children, share, rgb, .. } = stage {
+            self.spawn_evaluated(i, &ray, (children, share, rgb), &spawned);
         }
     }
 
@@ -659,9 +659,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// Admits the children `begin_shading` evaluated while the pool has room,
     /// so a hit is evaluated once; only children the pool refuses now are
     /// evaluated again later, by [`Self::shade`].
-    fn spawn_evaluated(&mut self, i: u16, spawned: &Children) {
-        let Some(slot) = self.pool.get(i).copied() else { return };
-        let Stage::Shade { children, share, rgb, .. } = slot.stage else { return };
+    fn spawn_evaluated(&mut self, i: u16, ray: &RayMsg, hit: (u8, u64, [u32; 3]), spawned: &Children) {
+        let (children, share, rgb) = hit;
         let mut next = self.scene().candidates();
         for &(k, mut child) in spawned {
             child.credit = share;
@@ -670,7 +669,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 break;
             }
         }
-        self.shaded_up_to(i, &slot.ray, Stage::Shade { next, children, share, rgb });
+        self.shaded_up_to(i, ray, Stage::Shade { next, children, share, rgb });
     }
 
     /// Records how far a hit's children are spawned: the parent retires with
