@@ -11,6 +11,7 @@ use node_fw::{CubeBox, DigitalLine, Direction, Grid, Line, Outcome, Point, Query
 use node_fw::{limits::Scalar, sphere::Hit};
 
 use crate::camera::PixelBasis;
+use crate::cost_map::CostMap;
 use crate::error::{HostError, input};
 use crate::scene::Scene;
 
@@ -35,12 +36,12 @@ pub struct DirectImage {
     pub hits: Vec<Option<PrimaryHit>>,
     /// Rays traced.
     pub rays: u64,
-    /// Per unit cube (x fastest), the compute cycles spent in it under the
-    /// board's cost model; empty unless asked for.
-    pub cost_map: Vec<u64>,
+    /// Where the frame's cycles fall under the board's cost model; `None`
+    /// unless asked for.
+    pub costs: Option<CostMap>,
 }
 
-/// Renders `scene` and measures the compute cost of every unit cube.
+/// Renders `scene` and measures what every unit cube and face costs.
 pub fn render_with_costs(
     scene: &Scene,
     width: u16,
@@ -50,29 +51,50 @@ pub fn render_with_costs(
     render_impl(scene, width, height, Some(cost), 30)
 }
 
-/// The compute cost map of a `width` x `height` render of `scene`; with
-/// `creation`, each initial ray's creation is charged to the cube where it
-/// enters the grid, as when the node holding that cube creates it.
+/// The cost map of a `width` x `height` render of `scene`, with each initial
+/// ray charged to the cube where it enters the grid: its creation with
+/// `creation` (the node holding that cube creates it), else its receipt from
+/// the node that created it.
 pub fn cost_map(
     scene: &Scene,
     width: u16,
     height: u16,
     cost: &sim_board::CostModel,
     creation: bool,
-) -> Result<Vec<u64>, HostError> {
-    let mut costs = Costs {
-        model: *cost,
-        grid: scene.grid,
-        map: render_with_costs(scene, width, height, cost)?.cost_map,
-    };
-    if creation {
-        let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
-        let camera = PixelBasis::new(&scene.camera(), width, height).msg();
-        for cell in crate::entry::entry_cells(&camera, &grid, [width, height]).into_iter().flatten() {
-            costs.add(cell, cost.create);
+) -> Result<CostMap, HostError> {
+    let mut map = render_with_costs(scene, width, height, cost)?
+        .costs
+        .ok_or_else(|| HostError::Node("the direct renderer measured no costs".into()))?;
+    add_initial_rays(&mut map, scene, [width, height], cost, creation)?;
+    Ok(map)
+}
+
+/// Charges each initial ray of a `size` image to the cube where it enters the
+/// grid: its creation with `creation`, else its receipt.
+pub fn add_initial_rays(
+    map: &mut CostMap,
+    scene: &Scene,
+    size: [u16; 2],
+    cost: &sim_board::CostModel,
+    creation: bool,
+) -> Result<(), HostError> {
+    let [width, height] = size;
+    let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
+    let camera = PixelBasis::new(&scene.camera(), width, height).msg();
+    for cell in crate::entry::entry_cells(&camera, &grid, [width, height]).into_iter().flatten() {
+        if creation {
+            map.add_compute(cell, cost.create);
+        } else {
+            map.add_message(cell, hop_side(cost));
         }
     }
-    Ok(costs.map)
+    Ok(())
+}
+
+/// What each side of a hop pays: the ray's message and its reply, and half
+/// the receiver's walk set-up (a ray entering a node is set up again).
+fn hop_side(cost: &sim_board::CostModel) -> u64 {
+    cost.ray_message + cost.short_message + cost.trace / 2
 }
 
 /// Renders `scene` with the camera's direction basis rounded to `bits` fraction
@@ -121,15 +143,8 @@ fn render_impl(
         camera.dv = round(camera.dv);
     }
     let pixels = usize::from(width) * usize::from(height);
-    let cubes = scene.grid.iter().map(|&n| usize::from(n)).product::<usize>();
-    let mut out = DirectImage {
-        sums: vec![[0; 3]; pixels],
-        hits: vec![None; pixels],
-        rays: 0,
-        cost_map: if cost.is_some() { vec![0; cubes] } else { Vec::new() },
-    };
-    let mut costs =
-        cost.map(|c| Costs { model: *c, grid: scene.grid, map: std::mem::take(&mut out.cost_map) });
+    let mut out = DirectImage { sums: vec![[0; 3]; pixels], hits: vec![None; pixels], rays: 0, costs: None };
+    let mut costs = cost.map(|c| Costs { model: *c, map: CostMap::new(scene.grid) });
     let mut stack: Vec<RayMsg> = Vec::new();
     for y in 0..height {
         for x in 0..width {
@@ -149,27 +164,14 @@ fn render_impl(
             }
         }
     }
-    if let Some(c) = costs {
-        out.cost_map = c.map;
-    }
+    out.costs = costs.map(|c| c.map);
     Ok(out)
 }
 
 /// A cost map being filled.
 struct Costs {
     model: sim_board::CostModel,
-    grid: [u16; 3],
-    map: Vec<u64>,
-}
-
-impl Costs {
-    fn add(&mut self, cell: [i32; 3], cycles: u64) {
-        let [nx, ny, _] = self.grid.map(usize::from);
-        let i = cell[0] as usize + nx * (cell[1] as usize + ny * cell[2] as usize);
-        if let Some(c) = self.map.get_mut(i) {
-            *c += cycles;
-        }
-    }
+    map: CostMap,
 }
 
 /// Traces one ray to its end; pushes its children; returns its own contribution.
@@ -196,20 +198,23 @@ fn trace(
     };
     let (mut best, mut stats) = (None, node_fw::TraceStats::default());
     if let Some(c) = costs.as_deref_mut() {
-        let trace_cost = c.model.trace;
-        c.add(walk.cell(), trace_cost);
+        c.map.add_compute(walk.cell(), c.model.trace);
     }
     let mut last = walk.cell();
     let outcome = region.trace_observed(&line, &mut walk, &mut best, &query, &mut stats, |cell, tests| {
-        last = cell;
         if let Some(c) = costs.as_deref_mut() {
             let cycles = c.model.cube_step + u64::from(tests) * c.model.sphere_test;
-            c.add(cell, cycles);
+            c.map.add_compute(cell, cycles);
+            c.map.add_crossing(last, cell, hop_side(&c.model));
         }
+        last = cell;
     });
-    if let (Outcome::Hit(_), Some(c)) = (outcome, costs) {
-        let shade_cost = c.model.shade;
-        c.add(last, shade_cost);
+    if let Some(c) = costs {
+        // The node where the ray ends retires it to the host.
+        c.map.add_message(last, c.model.short_message);
+        if let Outcome::Hit(_) = outcome {
+            c.map.add_compute(last, c.model.shade);
+        }
     }
     match outcome {
         Outcome::Hit(hit) => {

@@ -6,9 +6,11 @@
 pub mod backend;
 pub mod camera;
 pub mod compare;
+pub mod cost_map;
 pub mod direct;
 pub mod entry;
 pub mod error;
+pub mod fit;
 pub mod frame;
 pub mod history;
 pub mod numerics;

@@ -1,0 +1,528 @@
+//! Fitting a partition to a cost map ([`crate::cost_map`]): the planes
+//! across the driving axis by rectilinear partitioning and a local search,
+//! each row along the driving axis exactly, and every node's cost with rays
+//! routed as the nodes route them.
+
+use crate::cost_map::CostMap;
+use crate::error::{HostError, input};
+use crate::partition::Partition;
+
+impl Partition {
+    /// A partition fitted to a cost map: the one whose busiest node pays
+    /// least, as far as a local search finds it. The planes across the
+    /// driving axis stay whole (routing needs nothing but a node's own box):
+    /// first placed by rectilinear partitioning after Nicol (1994), each axis
+    /// in turn cut to minimise the busiest row's cubes given the other's cuts;
+    /// then moved a cube at a time while that lowers the busiest node, every
+    /// boundary's crossings counted and rays routed as the nodes route them
+    /// ([`Self::node_costs`]). Rows are cut along the driving axis exactly
+    /// ([`row_cuts`]). From the true cost map this is an oracle; from a
+    /// preview render's, a start the host can afford.
+    pub fn fitted(
+        grid: [u16; 3],
+        array: [u16; 3],
+        driving_axis: u8,
+        map: &CostMap,
+    ) -> Result<Self, HostError> {
+        if map.grid != grid {
+            return Err(input(format!("a cost map of grid {:?} cannot fit grid {grid:?}", map.grid)));
+        }
+        let mut p = Self::even(grid, array, driving_axis)?;
+        let cells = map.cells();
+        let d = usize::from(driving_axis);
+        let [a, b] = [(d + 1) % 3, (d + 2) % 3];
+        let mut best = p.busiest_row(grid, &cells);
+        // A few alternations settle it; keep the best seen, as a pass may not improve.
+        for _ in 0..4 {
+            let mut next = p.clone();
+            for (cut, other) in [(a, b), (b, a)] {
+                let planes = plane_costs(grid, &cells, cut, other, &next.cuts[other]);
+                next.cuts[cut] = bottleneck_cuts(&planes, usize::from(array[cut]));
+            }
+            let busiest = next.busiest_row(grid, &cells);
+            if busiest >= best {
+                break;
+            }
+            (p, best) = (next, busiest);
+        }
+        p.refine(map);
+        Ok(p)
+    }
+
+    /// Moves single planes across the driving axis by a cube, rows re-cut,
+    /// while that lowers the busiest node's cost (ties: the sum of squares).
+    fn refine(&mut self, map: &CostMap) {
+        let d = usize::from(self.driving_axis);
+        let mut best = self.cut_rows(map);
+        // Each accepted move lowers the score, so this ends; the cap bounds the time.
+        for _ in 0..4 * usize::from(map.grid.iter().copied().max().unwrap_or(1)) {
+            let mut improved = false;
+            for a in [(d + 1) % 3, (d + 2) % 3] {
+                for i in 1..usize::from(self.array[a]) {
+                    for next_at in [self.cuts[a][i] - 1, self.cuts[a][i] + 1] {
+                        if next_at <= self.cuts[a][i - 1] || next_at >= self.cuts[a][i + 1] {
+                            continue;
+                        }
+                        let mut next = self.clone();
+                        next.cuts[a][i] = next_at;
+                        let s = next.cut_rows(map);
+                        if s < best {
+                            (*self, best) = (next, s);
+                            improved = true;
+                        }
+                    }
+                }
+            }
+            if !improved {
+                break;
+            }
+        }
+    }
+
+    /// Cuts the rows along the driving axis, each on its own (staggered, as
+    /// sliding leaves them) or all alike (no ray forwarded), whichever leaves
+    /// the busiest node paying less; returns that score.
+    fn cut_rows(&mut self, map: &CostMap) -> Score {
+        let d = usize::from(self.driving_axis);
+        let parts = usize::from(self.array[d]);
+        let rows: Vec<RowProfile> = (0..self.len() / parts).map(|row| self.row_profile(map, row)).collect();
+        let mut alike = Self { row_cuts: None, ..self.clone() };
+        alike.cuts[d] = row_cuts(&rows, parts);
+        let own = rows.iter().map(|r| row_cuts(std::slice::from_ref(r), parts)).collect();
+        let staggered = Self { row_cuts: Some(own), ..self.clone() };
+        let (a, s) = (score(&alike.node_costs(map)), score(&staggered.node_costs(map)));
+        if s < a {
+            *self = staggered;
+            s
+        } else {
+            *self = alike;
+            a
+        }
+    }
+
+    /// Every node's cost under `map`, rays routed as the nodes route them
+    /// ([`node_fw::route`]): a ray leaving a node across a non-driving axis
+    /// goes to the neighbour at the same place along the driving axis, which
+    /// forwards it along that axis to the owner, every node on the way paying
+    /// both sides of a hop.
+    pub fn node_costs(&self, map: &CostMap) -> Vec<u64> {
+        let owner = self.owners(map.grid);
+        let mut cost = vec![0u64; self.len()];
+        for (i, &o) in owner.iter().enumerate() {
+            cost[o] += map.cell(i);
+        }
+        let [nx, ny, _] = map.grid.map(usize::from);
+        let stride = [1, nx, nx * ny];
+        for a in 0..3 {
+            for (i, &lo) in owner.iter().enumerate() {
+                let cell = [i % nx, i / nx % ny, i / (nx * ny)];
+                let Some(&hi) = owner.get(i + stride[a]).filter(|_| cell[a] + 1 < usize::from(map.grid[a]))
+                else {
+                    continue;
+                };
+                if lo != hi {
+                    self.charge_route(&mut cost, lo, hi, a, map.up[a][i]);
+                    self.charge_route(&mut cost, hi, lo, a, map.down[a][i]);
+                }
+            }
+        }
+        cost
+    }
+
+    /// Charges `per_side` to both ends of every hop of a ray stepping across
+    /// `axis` from node `from`'s cube into node `to`'s.
+    fn charge_route(&self, cost: &mut [u64], from: usize, to: usize, axis: usize, per_side: u64) {
+        let d = usize::from(self.driving_axis);
+        let mut at = from;
+        let mut next = self.coord(from);
+        let target = self.coord(to);
+        next[axis] = target[axis];
+        loop {
+            // Every coordinate on the way lies between two nodes' own.
+            let id = node_fw::wiring::index_of(next, self.array).map_or(to, usize::from);
+            cost[at] += per_side;
+            cost[id] += per_side;
+            if id == to || axis == d {
+                break;
+            }
+            // Forwarded along the driving axis toward the owner.
+            at = id;
+            next[d] = if next[d] < target[d] { next[d] + 1 } else { next[d] - 1 };
+        }
+    }
+
+    /// The node holding each cube (x fastest).
+    fn owners(&self, grid: [u16; 3]) -> Vec<usize> {
+        let [nx, ny, _] = grid.map(usize::from);
+        let mut owner = vec![0; grid.iter().map(|&n| usize::from(n)).product()];
+        for id in 0..self.len() {
+            let b = self.bounds(id);
+            for z in b.lo[2]..b.hi[2] {
+                for y in b.lo[1]..b.hi[1] {
+                    for x in b.lo[0]..b.hi[0] {
+                        owner[usize::from(x) + nx * (usize::from(y) + ny * usize::from(z))] = id;
+                    }
+                }
+            }
+        }
+        owner
+    }
+
+    /// The cost of the busiest row of nodes along the driving axis.
+    fn busiest_row(&self, grid: [u16; 3], cost: &[u64]) -> u64 {
+        self.row_layers(grid, cost).iter().map(|l| l.iter().sum::<u64>()).max().unwrap_or(0)
+    }
+
+    /// Per row of nodes along the driving axis, what it pays before it is cut
+    /// along that axis: its cubes and the crossings of its side faces. Any
+    /// cut only adds to it.
+    pub fn row_loads(&self, map: &CostMap) -> Vec<u64> {
+        let parts = usize::from(self.array[usize::from(self.driving_axis)]);
+        (0..self.len() / parts).map(|row| self.row_profile(map, row).layers.iter().sum()).collect()
+    }
+
+    /// One row of nodes (in [`Self::row_of`] order) as the map sees it, with
+    /// the planes across the driving axis whole: per layer of cubes across
+    /// the driving axis, its cubes and its crossings of the row's side faces;
+    /// per plane `k` between layers `k - 1` and `k`, what each side of a cut
+    /// there pays (`0` at the row's ends).
+    fn row_profile(&self, map: &CostMap, row: usize) -> RowProfile {
+        let d = usize::from(self.driving_axis);
+        let others: Vec<usize> = (0..3).filter(|&a| a != d).collect();
+        let (a0, a1) = (others[0], others[1]);
+        let r = [row % usize::from(self.array[a0]), row / usize::from(self.array[a0])];
+        let n = usize::from(map.grid[d]);
+        let (mut layers, mut planes) = (vec![0u64; n], vec![0u64; n + 1]);
+        let span = |a: usize, r: usize| (self.cuts[a][r], self.cuts[a][r + 1]);
+        let ((lo0, hi0), (lo1, hi1)) = (span(a0, r[0]), span(a1, r[1]));
+        let at = |c0: u16, c1: u16, k: usize| {
+            let mut cell = [0i32; 3];
+            (cell[a0], cell[a1], cell[d]) = (i32::from(c0), i32::from(c1), k as i32);
+            map.index(cell)
+        };
+        let face = |a: usize, i: Option<usize>| i.map_or(0, |i| map.face(a, i));
+        for c1 in lo1..hi1 {
+            for c0 in lo0..hi0 {
+                for k in 0..n {
+                    let i = at(c0, c1, k);
+                    let mut sum = i.map_or(0, |i| map.cell(i));
+                    if c0 == lo0 && lo0 > 0 {
+                        sum += face(a0, at(c0 - 1, c1, k));
+                    }
+                    if c0 + 1 == hi0 && hi0 < map.grid[a0] {
+                        sum += face(a0, i);
+                    }
+                    if c1 == lo1 && lo1 > 0 {
+                        sum += face(a1, at(c0, c1 - 1, k));
+                    }
+                    if c1 + 1 == hi1 && hi1 < map.grid[a1] {
+                        sum += face(a1, i);
+                    }
+                    layers[k] += sum;
+                    if k + 1 < n {
+                        planes[k + 1] += face(d, i);
+                    }
+                }
+            }
+        }
+        RowProfile { layers, planes }
+    }
+
+    /// Per row of nodes along the driving axis (in [`Self::row_of`] order),
+    /// the cost of each layer of cubes across it, from a per-cube cost map.
+    /// Uses the planes across the driving axis.
+    fn row_layers(&self, grid: [u16; 3], cost: &[u64]) -> Vec<Vec<u64>> {
+        let d = usize::from(self.driving_axis);
+        let others: Vec<usize> = (0..3).filter(|&a| a != d).collect();
+        let (a0, a1) = (others[0], others[1]);
+        let mut rows = Vec::new();
+        for r1 in 0..usize::from(self.array[a1]) {
+            for r0 in 0..usize::from(self.array[a0]) {
+                let mut layer = vec![0u64; usize::from(grid[d])];
+                for c1 in self.cuts[a1][r1]..self.cuts[a1][r1 + 1] {
+                    for c0 in self.cuts[a0][r0]..self.cuts[a0][r0 + 1] {
+                        for (k, l) in layer.iter_mut().enumerate() {
+                            let mut cell = [0usize; 3];
+                            cell[d] = k;
+                            cell[a0] = usize::from(c0);
+                            cell[a1] = usize::from(c1);
+                            let i =
+                                cell[0] + usize::from(grid[0]) * (cell[1] + usize::from(grid[1]) * cell[2]);
+                            *l += cost.get(i).copied().unwrap_or(0);
+                        }
+                    }
+                }
+                rows.push(layer);
+            }
+        }
+        rows
+    }
+}
+
+/// One row of nodes along the driving axis, as a cost map sees it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RowProfile {
+    /// Per layer of cubes across the driving axis, what its holder pays.
+    pub layers: Vec<u64>,
+    /// Per plane `k` between layers `k - 1` and `k`, what each side of a cut
+    /// there pays; the row's ends (`0` and `layers.len()`) are never charged.
+    pub planes: Vec<u64>,
+}
+
+impl RowProfile {
+    /// What the part of layers `i..j` pays.
+    fn part(&self, i: usize, j: usize) -> u64 {
+        let n = self.layers.len();
+        let plane = |k: usize| if k == 0 || k == n { 0 } else { self.planes.get(k).copied().unwrap_or(0) };
+        self.layers[i..j].iter().sum::<u64>() + plane(i) + plane(j)
+    }
+}
+
+/// Cuts `0 = c_0 < ... < c_parts = n` shared by `rows` (of `n` layers each)
+/// minimising the busiest part of any row: exact, by dynamic programming over
+/// (parts, end layer). Every part keeps at least one layer.
+pub fn row_cuts(rows: &[RowProfile], parts: usize) -> Vec<u16> {
+    let n = rows.first().map_or(0, |r| r.layers.len());
+    let parts = parts.clamp(1, n.max(1));
+    let cost = |i: usize, j: usize| rows.iter().map(|r| r.part(i, j)).max().unwrap_or(0);
+    // best[p][j]: the least busiest part of layers 0..j in p parts; from[p][j]: its last cut.
+    let mut best = vec![vec![u64::MAX; n + 1]; parts + 1];
+    let mut from = vec![vec![0usize; n + 1]; parts + 1];
+    best[0][0] = 0;
+    for p in 1..=parts {
+        for j in p..=n - (parts - p) {
+            for i in p - 1..j {
+                if best[p - 1][i] == u64::MAX {
+                    continue;
+                }
+                let v = best[p - 1][i].max(cost(i, j));
+                if v < best[p][j] {
+                    (best[p][j], from[p][j]) = (v, i);
+                }
+            }
+        }
+    }
+    let mut cuts = vec![n];
+    for p in (1..=parts).rev() {
+        let j = cuts[cuts.len() - 1];
+        cuts.push(from[p][j]);
+    }
+    cuts.reverse();
+    cuts.into_iter().map(|c| c as u16).collect()
+}
+
+/// A fit's score: the busiest node's cost, then the sum of squares.
+type Score = (u64, u128);
+
+/// A fit's score: the busiest node's cost, then the sum of squares.
+fn score(costs: &[u64]) -> Score {
+    let max = costs.iter().copied().max().unwrap_or(0);
+    (max, costs.iter().map(|&c| u128::from(c) * u128::from(c)).sum())
+}
+
+/// Per plane of cubes across axis `cut`, its cost within each part of axis
+/// `other` (cut at `other_cuts`), summed over the third axis.
+fn plane_costs(grid: [u16; 3], cost: &[u64], cut: usize, other: usize, other_cuts: &[u16]) -> Vec<Vec<u64>> {
+    let part_of: Vec<usize> = (0..grid[other])
+        .map(|c| other_cuts.windows(2).position(|w| c >= w[0] && c < w[1]).unwrap_or(0))
+        .collect();
+    let mut planes = vec![vec![0u64; other_cuts.len().saturating_sub(1)]; usize::from(grid[cut])];
+    let (nx, ny) = (usize::from(grid[0]), usize::from(grid[1]));
+    for (i, &c) in cost.iter().enumerate() {
+        let cell = [i % nx, (i / nx) % ny, i / (nx * ny)];
+        if let Some(part) = planes.get_mut(cell[cut]).and_then(|p| p.get_mut(part_of[cell[other]])) {
+            *part += c;
+        }
+    }
+    planes
+}
+
+/// Cuts `0 = c_0 < ... < c_parts = planes.len()` minimising the largest
+/// per-component sum of any part (each plane a vector of costs, one per row
+/// it crosses): the least feasible bound by bisection, then a greedy cut.
+pub fn bottleneck_cuts(planes: &[Vec<u64>], parts: usize) -> Vec<u16> {
+    let fallback = || (0..=parts).map(|i| (i * planes.len() / parts.max(1)) as u16).collect();
+    if parts == 0 || planes.len() < parts {
+        return fallback();
+    }
+    let (mut lo, mut hi) = (0u64, planes.iter().flatten().sum::<u64>());
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        if greedy_cuts(planes, parts, mid).is_some() { hi = mid } else { lo = mid + 1 }
+    }
+    greedy_cuts(planes, parts, lo).unwrap_or_else(fallback)
+}
+
+/// Cuts with no part over `bound` in any component, exactly `parts` parts of
+/// at least one plane each, or `None` if that takes more parts.
+fn greedy_cuts(planes: &[Vec<u64>], parts: usize, bound: u64) -> Option<Vec<u16>> {
+    let n = planes.len();
+    let mut cuts = vec![0u16];
+    let mut acc = vec![0u64; planes.first().map_or(0, Vec::len)];
+    for (i, plane) in planes.iter().enumerate() {
+        let started = usize::from(*cuts.last().unwrap_or(&0)) < i;
+        let over = acc.iter().zip(plane).any(|(a, p)| a + p > bound);
+        // Cut when this part is full, or when every part still to come needs a plane.
+        if started && (over || n - i == parts - cuts.len()) {
+            if cuts.len() == parts {
+                return None;
+            }
+            cuts.push(i as u16);
+            acc.iter_mut().for_each(|a| *a = 0);
+        }
+        if plane.iter().any(|&p| p > bound) {
+            return None;
+        }
+        acc.iter_mut().zip(plane).for_each(|(a, p)| *a += p);
+    }
+    cuts.push(n as u16);
+    (cuts.len() == parts + 1).then_some(cuts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{RowProfile, bottleneck_cuts, row_cuts};
+    use crate::cost_map::CostMap;
+    use crate::partition::Partition;
+    use proptest::prelude::*;
+
+    /// The largest per-component sum of any part.
+    fn worst(planes: &[Vec<u64>], cuts: &[u16]) -> u64 {
+        cuts.windows(2)
+            .flat_map(|w| {
+                let part = &planes[usize::from(w[0])..usize::from(w[1])];
+                (0..planes[0].len()).map(move |j| part.iter().map(|p| p[j]).sum::<u64>())
+            })
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Every way to cut `n` planes into `parts` non-empty parts.
+    fn all_cuts(n: usize, parts: usize) -> Vec<Vec<u16>> {
+        if parts == 1 {
+            return vec![vec![0, n as u16]];
+        }
+        (parts - 1..n)
+            .flat_map(|last| {
+                all_cuts(last, parts - 1).into_iter().map(move |mut c| {
+                    c.push(n as u16);
+                    c
+                })
+            })
+            .collect()
+    }
+
+    proptest! {
+        #[test]
+        fn bottleneck_cuts_are_optimal_against_every_cut(
+            planes in (1usize..=3).prop_flat_map(|k| prop::collection::vec(prop::collection::vec(0u64..50, k), 1..=9)),
+            parts in 1usize..=4,
+        ) {
+            prop_assume!(parts <= planes.len());
+            let cuts = bottleneck_cuts(&planes, parts);
+            prop_assert_eq!(cuts.len(), parts + 1);
+            prop_assert_eq!(cuts[0], 0);
+            prop_assert_eq!(usize::from(cuts[parts]), planes.len());
+            prop_assert!(cuts.windows(2).all(|w| w[0] < w[1]), "{:?}", cuts);
+            let best = all_cuts(planes.len(), parts).iter().map(|c| worst(&planes, c)).min().unwrap();
+            prop_assert_eq!(worst(&planes, &cuts), best);
+        }
+    }
+
+    #[test]
+    fn fitted_partition_evens_out_rows_of_a_concentrated_cost() {
+        // Nearly all the cost in an 8^3 block off-centre in a 16^3 grid, as
+        // when the spheres fill part of the space.
+        let grid = [16u16; 3];
+        let mut cost = vec![1u64; 16 * 16 * 16];
+        for z in 2..10 {
+            for y in 6..14 {
+                for x in 3..11 {
+                    cost[x + 16 * (y + 16 * z)] = 1000;
+                }
+            }
+        }
+        let map = CostMap { compute: cost, ..CostMap::new(grid) };
+        let even = Partition::even(grid, [4; 3], 2).unwrap();
+        let fitted = Partition::fitted(grid, [4; 3], 2, &map).unwrap();
+        let rows = |p: &Partition| p.row_loads(&map);
+        let (e, f) = (rows(&even), rows(&fitted));
+        let mean = e.iter().sum::<u64>() as f64 / e.len() as f64;
+        assert_eq!(e.iter().sum::<u64>(), f.iter().sum::<u64>());
+        let (emax, fmax) = (*e.iter().max().unwrap() as f64 / mean, *f.iter().max().unwrap() as f64 / mean);
+        assert!(emax > 2.0 && fmax < 1.1, "busiest row / mean: even {emax:.2}, fitted {fmax:.2}");
+        // Whole planes across the driving axis; every node keeps a cube per axis.
+        for a in 0..3 {
+            assert!(fitted.cuts[a].windows(2).all(|w| w[0] < w[1]) && fitted.cuts[a][4] == 16);
+        }
+        for row in fitted.row_cuts.iter().flatten() {
+            assert!(row.windows(2).all(|w| w[0] < w[1]) && row[0] == 0 && row[4] == 16, "{row:?}");
+        }
+        // The boxes tile the grid.
+        let volume: u64 = (0..fitted.len()).map(|id| fitted.bounds(id).volume()).sum();
+        assert_eq!(volume, 16 * 16 * 16);
+    }
+
+    #[test]
+    fn fitted_partition_cuts_where_few_rays_cross() {
+        // Even compute; rays crossing the planes z = 4, 8 and 12 heavily, the
+        // even partition's cuts along the driving axis z.
+        let grid = [16u16; 3];
+        let mut map = CostMap { compute: vec![10; 16 * 16 * 16], ..CostMap::new(grid) };
+        for (i, f) in map.up[2].iter_mut().enumerate() {
+            *f = if [3, 7, 11].contains(&(i / 256)) { 1000 } else { 1 };
+        }
+        for (i, f) in map.down[2].iter_mut().enumerate() {
+            *f = if i / 256 == 7 { 500 } else { 0 };
+        }
+        let max_node = |p: &Partition| (0..p.len()).map(|id| map.node_cost(&p.bounds(id))).max().unwrap();
+        let even = Partition::even(grid, [2, 2, 4], 2).unwrap();
+        let fitted = Partition::fitted(grid, [2, 2, 4], 2, &map).unwrap();
+        // A row is 64 cubes across: 640 a layer, 64 a plane's side, 64 000
+        // at the heavy planes (96 000 at z = 8, crossed both ways).
+        assert_eq!(max_node(&even), 4 * 640 + 64_000 + 96_000);
+        assert_eq!(max_node(&fitted), 5 * 640 + 64, "{:?} {:?}", fitted.cuts, fitted.row_cuts);
+        // No ray is forwarded here: the routed account agrees with the boxes'.
+        for p in [&even, &fitted] {
+            let routed = p.node_costs(&map);
+            assert!((0..p.len()).all(|id| routed[id] == map.node_cost(&p.bounds(id))));
+        }
+    }
+
+    /// The busiest part of any row under `cuts`, priced from scratch.
+    fn busiest_part(rows: &[(Vec<u64>, Vec<u64>)], cuts: &[u16]) -> u64 {
+        let mut worst = 0;
+        for (layers, planes) in rows {
+            let n = layers.len();
+            let plane = |k: usize| if k == 0 || k == n { 0 } else { planes[k] };
+            for w in cuts.windows(2) {
+                let (i, j) = (usize::from(w[0]), usize::from(w[1]));
+                worst = worst.max(layers[i..j].iter().sum::<u64>() + plane(i) + plane(j));
+            }
+        }
+        worst
+    }
+
+    proptest! {
+        #[test]
+        fn row_cuts_are_optimal_against_every_cut(
+            rows in (1usize..=9).prop_flat_map(|n| prop::collection::vec((
+                prop::collection::vec(0u64..50, n),
+                prop::collection::vec(0u64..80, n + 1),
+            ), 1..=3)),
+            parts in 1usize..=4,
+        ) {
+            let n = rows[0].0.len();
+            prop_assume!(parts <= n);
+            let profiles: Vec<RowProfile> =
+                rows.iter().map(|(l, p)| RowProfile { layers: l.clone(), planes: p.clone() }).collect();
+            let cuts = row_cuts(&profiles, parts);
+            prop_assert_eq!(cuts.len(), parts + 1);
+            prop_assert_eq!(cuts[0], 0);
+            prop_assert_eq!(usize::from(cuts[parts]), n);
+            prop_assert!(cuts.windows(2).all(|w| w[0] < w[1]), "{:?}", cuts);
+            let best = all_cuts(n, parts).iter().map(|c| busiest_part(&rows, c)).min().unwrap();
+            prop_assert_eq!(busiest_part(&rows, &cuts), best);
+        }
+    }
+}

@@ -1,0 +1,68 @@
+//! The cost map the host fits partitions to, against the board it models.
+
+use host_tool::direct;
+use host_tool::partition::Partition;
+use host_tool::render::{Initial, Layout, RenderOptions, render_partitioned, render_sim};
+use host_tool::scene::Scene;
+
+/// Spheres crowded in the middle eighth of the grid, as in Figs. 9/10.
+fn options() -> (Scene, RenderOptions) {
+    let s = Scene::random(1000, 7, 0.125, [32; 3]).unwrap();
+    let mut opts = RenderOptions::new([4, 4, 4]);
+    opts.size = [64, 64];
+    opts.initial = Initial::Entry;
+    (s, opts)
+}
+
+#[test]
+fn the_cost_map_accounts_for_each_nodes_busy_time() {
+    let (s, opts) = options();
+    let map = direct::cost_map(&s, opts.size[0], opts.size[1], &opts.sim.cost, true).unwrap();
+    // Beside what the map places, every node takes the broadcast scene: a
+    // short message per sphere and light, and a few to begin and end.
+    let broadcast = (s.spheres.len() + s.lights.len() + 6) as f64 * opts.sim.cost.short_message as f64;
+    let want = direct::render(&s, opts.size[0], opts.size[1]).unwrap();
+    let even = Partition::even(s.grid, opts.array, 2).unwrap();
+    let mut staggered = even.clone();
+    // Rows cut apart, so rays crossing between rows are forwarded.
+    staggered.row_cuts = Some((0..16).map(|r| vec![0, 4 + r % 3 * 4, 16, 20 + r % 5, 32]).collect());
+    // Unstaggered, the map's account is close. Forwarded rays cost some nodes
+    // more than it says (up to 26% of their busy time here, 5% in all; it
+    // does not come from pool refusals, which deeper pools do not change).
+    for (p, node_error, total_error) in [(even, 0.15, 0.03), (staggered, 0.3, 0.06)] {
+        let r = render_partitioned(&s, &opts, p.clone()).unwrap();
+        assert!(r.frame.sums == want.sums, "the partition changed the image");
+        let costs = p.node_costs(&map);
+        let (mut busy_sum, mut placed_sum) = (0.0, 0.0);
+        for (id, &cost) in costs.iter().enumerate() {
+            let busy = r.frame.loads[id].unwrap().running as f64;
+            let placed = cost as f64 + broadcast;
+            assert!(
+                (busy - placed).abs() < node_error * busy,
+                "node {id}: busy {busy:.4e}, the map says {placed:.4e}"
+            );
+            (busy_sum, placed_sum) = (busy_sum + busy, placed_sum + placed);
+        }
+        assert!(
+            (busy_sum - placed_sum).abs() < total_error * busy_sum,
+            "busy {busy_sum:.4e}, the map says {placed_sum:.4e}"
+        );
+    }
+}
+
+#[test]
+fn a_preview_fitted_with_messages_lowers_the_busiest_node() {
+    let (s, mut opts) = options();
+    let busiest = |opts: &RenderOptions| {
+        let r = render_sim(&s, opts).unwrap();
+        assert!(r.frame.sums == direct::render(&s, opts.size[0], opts.size[1]).unwrap().sums);
+        r.frame.loads.iter().map(|l| l.unwrap().running).max().unwrap()
+    };
+    opts.driving_axis = Some(2);
+    let even = busiest(&opts);
+    opts.layout = Layout::Preview;
+    let fitted = busiest(&opts);
+    // Measured: 1.16e7 even, 9.89e6 fitted to a 16 x 16 preview (each node
+    // also takes 2.1e6 for the broadcast scene, whatever the partition).
+    assert!(fitted < even * 9 / 10, "busiest node: even {even}, preview {fitted}");
+}
