@@ -36,19 +36,19 @@ pub struct DirectImage {
     pub hits: Vec<Option<PrimaryHit>>,
     /// Rays traced.
     pub rays: u64,
-    /// Where the frame's cycles fall under the board's cost model; `None`
-    /// unless asked for.
-    pub costs: Option<CostMap>,
 }
 
-/// Renders `scene` and measures what every unit cube and face costs.
-pub fn render_with_costs(
+/// Renders `scene` and measures what every unit cube and face costs, the
+/// initial rays' creation aside ([`add_initial_rays`]).
+pub fn measure_costs(
     scene: &Scene,
     width: u16,
     height: u16,
     cost: &sim_board::CostModel,
-) -> Result<DirectImage, HostError> {
-    render_impl(scene, width, height, Some(cost), 30)
+) -> Result<CostMap, HostError> {
+    let mut costs = Costs { model: *cost, map: CostMap::new(scene.grid) };
+    render_impl(scene, width, height, Some(&mut costs), 30)?;
+    Ok(costs.map)
 }
 
 /// The cost map of a `width` x `height` render of `scene`, with each initial
@@ -62,9 +62,7 @@ pub fn cost_map(
     cost: &sim_board::CostModel,
     creation: bool,
 ) -> Result<CostMap, HostError> {
-    let mut map = render_with_costs(scene, width, height, cost)?
-        .costs
-        .ok_or_else(|| HostError::Node("the direct renderer measured no costs".into()))?;
+    let mut map = measure_costs(scene, width, height, cost)?;
     add_initial_rays(&mut map, scene, [width, height], cost, creation)?;
     Ok(map)
 }
@@ -117,7 +115,7 @@ fn render_impl(
     scene: &Scene,
     width: u16,
     height: u16,
-    cost: Option<&sim_board::CostModel>,
+    mut costs: Option<&mut Costs>,
     camera_bits: u32,
 ) -> Result<DirectImage, HostError> {
     let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
@@ -143,8 +141,7 @@ fn render_impl(
         camera.dv = round(camera.dv);
     }
     let pixels = usize::from(width) * usize::from(height);
-    let mut out = DirectImage { sums: vec![[0; 3]; pixels], hits: vec![None; pixels], rays: 0, costs: None };
-    let mut costs = cost.map(|c| Costs { model: *c, map: CostMap::new(scene.grid) });
+    let mut out = DirectImage { sums: vec![[0; 3]; pixels], hits: vec![None; pixels], rays: 0 };
     let mut stack: Vec<RayMsg> = Vec::new();
     for y in 0..height {
         for x in 0..width {
@@ -153,7 +150,7 @@ fn render_impl(
             stack.push(primary_ray(&line, pixel as u32, 0));
             while let Some(ray) = stack.pop() {
                 out.rays += 1;
-                let (rgb, hit) = trace(&mut region, &shading, &grid, &ray, &mut stack, costs.as_mut());
+                let (rgb, hit) = trace(&mut region, &shading, &grid, &ray, &mut stack, costs.as_deref_mut());
                 let sum = &mut out.sums[pixel];
                 for c in 0..3 {
                     sum[c] += u64::from(rgb[c]);
@@ -164,7 +161,6 @@ fn render_impl(
             }
         }
     }
-    out.costs = costs.map(|c| c.map);
     Ok(out)
 }
 

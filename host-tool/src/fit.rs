@@ -29,8 +29,7 @@ impl Partition {
         }
         let mut p = Self::even(grid, array, driving_axis)?;
         let cells = map.cells();
-        let d = usize::from(driving_axis);
-        let [a, b] = [(d + 1) % 3, (d + 2) % 3];
+        let [a, b] = p.row_axes();
         let mut best = p.busiest_row(grid, &cells);
         // A few alternations settle it; keep the best seen, as a pass may not improve.
         for _ in 0..4 {
@@ -52,12 +51,11 @@ impl Partition {
     /// Moves single planes across the driving axis by a cube, rows re-cut,
     /// while that lowers the busiest node's cost (ties: the sum of squares).
     fn refine(&mut self, map: &CostMap) {
-        let d = usize::from(self.driving_axis);
         let mut best = self.cut_rows(map);
         // Each accepted move lowers the score, so this ends; the cap bounds the time.
         for _ in 0..4 * usize::from(map.grid.iter().copied().max().unwrap_or(1)) {
             let mut improved = false;
-            for a in [(d + 1) % 3, (d + 2) % 3] {
+            for a in self.row_axes() {
                 for i in 1..usize::from(self.array[a]) {
                     for next_at in [self.cuts[a][i] - 1, self.cuts[a][i] + 1] {
                         if next_at <= self.cuts[a][i - 1] || next_at >= self.cuts[a][i + 1] {
@@ -168,9 +166,16 @@ impl Partition {
         owner
     }
 
-    /// The cost of the busiest row of nodes along the driving axis.
-    fn busiest_row(&self, grid: [u16; 3], cost: &[u64]) -> u64 {
-        self.row_layers(grid, cost).iter().map(|l| l.iter().sum::<u64>()).max().unwrap_or(0)
+    /// The cubes' cost (`cells`, x fastest) of the busiest row of nodes
+    /// along the driving axis.
+    fn busiest_row(&self, grid: [u16; 3], cells: &[u64]) -> u64 {
+        let [a, b] = self.row_axes();
+        let planes = plane_costs(grid, cells, a, b, &self.cuts[b]);
+        let row = |lo: u16, hi: u16, part: usize| -> u64 {
+            planes[usize::from(lo)..usize::from(hi)].iter().map(|p| p[part]).sum()
+        };
+        let parts = self.cuts[b].len() - 1;
+        self.cuts[a].windows(2).flat_map(|w| (0..parts).map(move |j| row(w[0], w[1], j))).max().unwrap_or(0)
     }
 
     /// Per row of nodes along the driving axis, what it pays before it is cut
@@ -188,8 +193,7 @@ impl Partition {
     /// there pays (`0` at the row's ends).
     fn row_profile(&self, map: &CostMap, row: usize) -> RowProfile {
         let d = usize::from(self.driving_axis);
-        let others: Vec<usize> = (0..3).filter(|&a| a != d).collect();
-        let (a0, a1) = (others[0], others[1]);
+        let [a0, a1] = self.row_axes();
         let r = [row % usize::from(self.array[a0]), row / usize::from(self.array[a0])];
         let n = usize::from(map.grid[d]);
         let (mut layers, mut planes) = (vec![0u64; n], vec![0u64; n + 1]);
@@ -226,36 +230,6 @@ impl Partition {
             }
         }
         RowProfile { layers, planes }
-    }
-
-    /// Per row of nodes along the driving axis (in [`Self::row_of`] order),
-    /// the cost of each layer of cubes across it, from a per-cube cost map.
-    /// Uses the planes across the driving axis.
-    fn row_layers(&self, grid: [u16; 3], cost: &[u64]) -> Vec<Vec<u64>> {
-        let d = usize::from(self.driving_axis);
-        let others: Vec<usize> = (0..3).filter(|&a| a != d).collect();
-        let (a0, a1) = (others[0], others[1]);
-        let mut rows = Vec::new();
-        for r1 in 0..usize::from(self.array[a1]) {
-            for r0 in 0..usize::from(self.array[a0]) {
-                let mut layer = vec![0u64; usize::from(grid[d])];
-                for c1 in self.cuts[a1][r1]..self.cuts[a1][r1 + 1] {
-                    for c0 in self.cuts[a0][r0]..self.cuts[a0][r0 + 1] {
-                        for (k, l) in layer.iter_mut().enumerate() {
-                            let mut cell = [0usize; 3];
-                            cell[d] = k;
-                            cell[a0] = usize::from(c0);
-                            cell[a1] = usize::from(c1);
-                            let i =
-                                cell[0] + usize::from(grid[0]) * (cell[1] + usize::from(grid[1]) * cell[2]);
-                            *l += cost.get(i).copied().unwrap_or(0);
-                        }
-                    }
-                }
-                rows.push(layer);
-            }
-        }
-        rows
     }
 }
 

@@ -333,9 +333,7 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                 let (st, imb, axis) = (base.makespan, base.imbalance, base.axis);
                 let _ = writeln!(fig9, "{n}x{n}x{n},{count},{v},static,{axis},{st},1.000,{imb:.3},0,0,0,0");
                 let model = sim_board::CostModel::default();
-                let mut map = crate::direct::render_with_costs(&scene, cfg.size[0], cfg.size[1], &model)?
-                    .costs
-                    .ok_or_else(|| HostError::Node("the direct renderer measured no costs".into()))?;
+                let mut map = crate::direct::measure_costs(&scene, cfg.size[0], cfg.size[1], &model)?;
                 // A strict lower bound: the compute work is the same whatever
                 // the partition (every cube's walks, tests and shading, and
                 // every pixel's initial ray); messages only add to it.

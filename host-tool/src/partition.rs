@@ -44,9 +44,21 @@ impl Partition {
 
     /// The row of node coordinate `c` (index over the non-driving axes).
     pub fn row_of(&self, c: [u16; 3]) -> usize {
+        let [a0, a1] = self.row_axes();
+        usize::from(c[a0]) + usize::from(self.array[a0]) * usize::from(c[a1])
+    }
+
+    /// The two axes across the driving axis, lower first: a row's index runs
+    /// over the first fastest.
+    pub fn row_axes(&self) -> [usize; 2] {
         let d = usize::from(self.driving_axis);
-        let others: Vec<usize> = (0..3).filter(|&a| a != d).collect();
-        usize::from(c[others[0]]) + usize::from(self.array[others[0]]) * usize::from(c[others[1]])
+        if d == 0 {
+            [1, 2]
+        } else if d == 1 {
+            [0, 2]
+        } else {
+            [0, 1]
+        }
     }
 
     /// Number of nodes.

@@ -68,7 +68,6 @@ fn float_as_direct(img: &RefImage) -> DirectImage {
         sums: img.color.iter().map(|c| c.to_array().map(|v| (v * 32768.0).max(0.0).round() as u64)).collect(),
         hits: img.hits.iter().map(|h| h.map(|h| PrimaryHit { sphere: h.sphere, t: h.t })).collect(),
         rays: img.rays,
-        costs: None,
     }
 }
 
