@@ -235,6 +235,10 @@ struct RenderArgs {
     /// Ray pool slots per class level in each node (back-pressure depth).
     #[arg(long, value_name = "N", default_value_t = 4)]
     queue_depth: u16,
+    /// Ray pool slots open to every class, beyond the queue depth per level
+    /// [default: all a node has left over].
+    #[arg(long, value_name = "N")]
+    shared_slots: Option<u16>,
     /// Output image.
     #[arg(long, value_name = "FILE.png", default_value = "render.png")]
     out: PathBuf,
@@ -309,6 +313,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
     let mut opts = RenderOptions::new(args.array);
     opts.size = args.scene.size;
     opts.level_depth = args.queue_depth;
+    opts.shared_slots = args.shared_slots;
     opts.initial = match args.initial_rays {
         InitialMode::Parallel => Initial::Parallel,
         InitialMode::Eye => Initial::EyeNode,
@@ -530,6 +535,7 @@ fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String
         "initial_rays": opts.initial.name(),
         "layout": opts.layout.name(),
         "queue_depth": opts.level_depth,
+        "shared_slots": opts.shared_slots,
         "balance": if opts.balance.is_some() { "slide" } else { "static" },
         "driving_axis": r.partition.driving_axis,
         "slides": f.slides.len(),

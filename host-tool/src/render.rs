@@ -91,6 +91,9 @@ pub struct RenderOptions {
     pub initial: Initial,
     /// Ray pool slots per class level.
     pub level_depth: u16,
+    /// Ray pool slots beyond those, open to every class; `None`: all a node
+    /// has left over.
+    pub shared_slots: Option<u16>,
     /// Board costs and links.
     pub sim: SimConfig,
     /// Sliding boundaries, or `None` for the static partition.
@@ -103,13 +106,14 @@ pub struct RenderOptions {
 
 impl RenderOptions {
     /// Defaults for an array: 256 x 256 pixels, initial rays created where they
-    /// enter, depth 4.
+    /// enter, depth 4, every slot left over shared.
     pub fn new(array: [u16; 3]) -> Self {
         Self {
             array,
             size: [256, 256],
             initial: Initial::Entry,
             level_depth: 4,
+            shared_slots: None,
             sim: SimConfig::new(array),
             balance: None,
             driving_axis: None,
@@ -233,10 +237,12 @@ pub fn check_frame(
     let sliding = opts.balance.is_some() || partition.row_cuts.is_some();
     let top =
         class_bound(opts.array, scene.max_depth, sliding.then_some(usize::from(partition.driving_axis)));
-    let needed = (top + 1) * u32::from(opts.level_depth);
+    let shared = opts.shared_slots.map_or(0, u32::from);
+    let needed = (top + 1) * u32::from(opts.level_depth) + shared;
     if opts.level_depth == 0 || needed > u32::from(capacity.rays) {
         return Err(HostError::Capacity(format!(
-            "queue depth {} needs {needed} ray slots per node for this array and max_depth; a node has {}",
+            "queue depth {} and {shared} shared slots need {needed} ray slots per node for this array \
+             and max_depth; a node has {}",
             opts.level_depth, capacity.rays
         )));
     }
@@ -314,6 +320,7 @@ fn broadcast(board: &mut impl Array, scene: &Scene, partition: &Partition, opts:
                 tile: *tile,
                 credit: PIXEL_CREDIT,
                 level_depth: opts.level_depth,
+                shared_slots: opts.shared_slots,
                 balance: opts.balance,
             }),
         );

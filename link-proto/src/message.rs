@@ -273,6 +273,9 @@ pub struct RenderStart {
     pub credit: u64,
     /// Pool slots per ray class level (the deadlock-free buffer pool's depth).
     pub level_depth: u16,
+    /// Pool slots beyond those, open to rays of every class; `None`: every
+    /// slot the node has left over.
+    pub shared_slots: Option<u16>,
     /// Sliding boundaries, or `None` for a static partition.
     pub balance: Option<Balance>,
 }

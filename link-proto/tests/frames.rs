@@ -118,6 +118,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 tile,
                 credit,
                 level_depth: frame as u16,
+                shared_slots: (credit % 3 == 0).then_some(size[0]),
                 balance: (credit % 2 == 0).then_some(Balance {
                     interval: credit,
                     threshold: frame,

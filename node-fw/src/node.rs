@@ -421,7 +421,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         };
         let sliding = (r.balance.is_some() || assign.staggered).then_some(usize::from(assign.driving_axis));
         let top = class_bound(assign.array, self.header.max_depth, sliding);
-        if let Err(e) = self.pool.configure(top, r.level_depth) {
+        if let Err(e) = self.pool.configure(top, r.level_depth, r.shared_slots) {
             return self.fail(ErrorCode::PoolCapacity, e.capacity, e.needed);
         }
         self.render = Some(r);

@@ -8,6 +8,13 @@
 //! never needs another slot, so it always finishes; by induction on the class,
 //! so does every ray, however small `depth` is. Rays that cannot be admitted
 //! stay with their sender (see [`crate::node`]): the pool hands them back.
+//!
+//! **Shared slots.** The argument needs only the levels above 0 to be kept
+//! for their classes; level 0 is open to every ray, so any slots the node has
+//! beyond one `depth` per level can go there. Without them a node near the
+//! eye, taking many rays of low class, refused rays while most of its pool
+//! stood empty for classes that never came, and each refusal cost it a ray
+//! message, a reply and a space notice.
 
 use link_proto::{RayMsg, Retire};
 
@@ -81,12 +88,17 @@ pub struct Slot {
     level: u16,
 }
 
+/// Slots at level 0 beyond `depth`: a number, or every slot left over.
+fn shared_slots(capacity: u32, levels: u32, shared: Option<u16>) -> u32 {
+    shared.map_or(capacity.saturating_sub(levels), u32::from)
+}
+
 /// Why a pool cannot be configured.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PoolTooSmall {
     /// Slots the pool has.
     pub capacity: u32,
-    /// Slots needed for one `depth` per class level.
+    /// Slots needed for one `depth` per class level and the shared slots.
     pub needed: u32,
 }
 
@@ -100,6 +112,8 @@ pub struct RayPool<const P: usize> {
     free: heapless::Vec<u16, P>,
     used_per_level: [u16; MAX_LEVELS],
     depth: u16,
+    /// Level 0's slots: `depth` and the shared ones.
+    base: u16,
     top: u16,
 }
 
@@ -118,18 +132,25 @@ impl<const P: usize> RayPool<P> {
             free: heapless::Vec::new(),
             used_per_level: [0; MAX_LEVELS],
             depth: 0,
+            base: 0,
             top: 0,
         }
     }
 
-    /// Sets `depth` slots for each class level `0..=top` and empties the pool.
-    pub fn configure(&mut self, top: u32, depth: u16) -> Result<(), PoolTooSmall> {
-        let needed = (top + 1).saturating_mul(u32::from(depth));
+    /// Sets `depth` slots for each class level `0..=top`, and `shared` more
+    /// at level 0, open to every class (`None`: every slot left over), and
+    /// empties the pool.
+    pub fn configure(&mut self, top: u32, depth: u16, shared: Option<u16>) -> Result<(), PoolTooSmall> {
+        let levels = (top + 1).saturating_mul(u32::from(depth));
+        let needed = levels.saturating_add(shared.map_or(0, u32::from));
+        let base = u32::from(depth) + shared_slots(P as u32, levels, shared);
         if needed > P as u32 || top as usize >= MAX_LEVELS || depth == 0 {
             return Err(PoolTooSmall { capacity: P as u32, needed });
         }
         self.top = top as u16;
         self.depth = depth;
+        // At most P, and P fits a u16 (slot indices are u16).
+        self.base = u16::try_from(base).unwrap_or(u16::MAX);
         self.clear();
         Ok(())
     }
@@ -247,6 +268,65 @@ impl<const P: usize> RayPool<P> {
 
     fn free_level(&self, class: u16) -> Option<u16> {
         let class = class.min(self.top);
-        (0..=class).rev().find(|&l| self.used_per_level.get(usize::from(l)).is_some_and(|&u| u < self.depth))
+        let room = |l: u16| if l == 0 { self.base } else { self.depth };
+        (0..=class).rev().find(|&l| self.used_per_level.get(usize::from(l)).is_some_and(|&u| u < room(l)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use link_proto::RayKind;
+
+    fn ray(class: u16) -> RayMsg {
+        RayMsg {
+            origin: [0; 3],
+            dir: [1 << 30, 0, 0],
+            cell: [0; 3],
+            pixel: 0,
+            weight: [0; 3],
+            credit: 0,
+            kind: RayKind::Primary,
+            depth: 0,
+            ignore: None,
+            best: None,
+            t_max: None,
+            class,
+            tag: 0,
+        }
+    }
+
+    /// Rays of `class` admitted until the first refusal.
+    fn admitted(pool: &mut RayPool<8>, class: u16) -> usize {
+        (0..).take_while(|_| pool.admit(ray(class), Stage::Trace).is_ok()).count()
+    }
+
+    #[test]
+    fn without_shared_slots_each_class_reaches_only_its_levels() {
+        let mut pool = RayPool::<8>::new();
+        pool.configure(2, 2, Some(0)).unwrap();
+        assert_eq!(admitted(&mut pool, 0), 2, "level 0 only");
+        assert_eq!(admitted(&mut pool, 2), 4, "levels 1 and 2");
+        assert_eq!(pool.len(), 6, "two slots of eight stay unused");
+    }
+
+    #[test]
+    fn slots_left_over_are_shared_at_level_zero() {
+        let mut pool = RayPool::<8>::new();
+        pool.configure(2, 1, None).unwrap();
+        assert_eq!(admitted(&mut pool, 0), 6, "level 0: its own slot and the five left over");
+        // The levels above stay kept for their classes.
+        assert_eq!(admitted(&mut pool, 1), 1);
+        assert_eq!(admitted(&mut pool, 2), 1);
+        assert!(pool.free.is_empty());
+    }
+
+    #[test]
+    fn slots_that_do_not_fit_are_refused_with_the_need() {
+        let mut pool = RayPool::<8>::new();
+        assert_eq!(pool.configure(2, 1, Some(6)), Err(PoolTooSmall { capacity: 8, needed: 9 }));
+        assert_eq!(pool.configure(2, 3, None), Err(PoolTooSmall { capacity: 8, needed: 9 }));
+        assert!(pool.configure(2, 1, Some(5)).is_ok());
+        assert_eq!(admitted(&mut pool, 2), 8);
     }
 }

@@ -138,8 +138,8 @@ fn arb_message() -> impl Strategy<Value = Message> {
         1 => (proptest::array::uniform3(small_i32()), any::<u8>())
             .prop_map(|(position, id)| Message::Light(LightMsg { id, position, color: [20000; 3] })),
         2 => (0u32..30, 0u8..3).prop_map(|(spheres, lights)| Message::SceneEnd(SceneEnd { spheres, lights })),
-        2 => (camera, any::<[u16; 2]>(), any::<[u16; 4]>(), 0u16..6, any::<bool>()).prop_map(
-            |(camera, size, tile, level_depth, balance)| Message::RenderStart(RenderStart {
+        2 => (camera, any::<[u16; 2]>(), any::<[u16; 4]>(), (0u16..6, proptest::option::of(any::<u16>())), any::<bool>()).prop_map(
+            |(camera, size, tile, (level_depth, shared_slots), balance)| Message::RenderStart(RenderStart {
                 frame: 0,
                 size: [size[0] % 64, size[1] % 64],
                 camera,
@@ -147,6 +147,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 tile: tile.map(|t| t % 64),
                 credit: 1 << 32,
                 level_depth,
+                shared_slots,
                 balance: balance.then_some(Balance { interval: 50, threshold: 1 << 16, step: 1, policy: SlidePolicy::Paper }),
             })
         ),

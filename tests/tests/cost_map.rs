@@ -26,10 +26,10 @@ fn the_cost_map_accounts_for_each_nodes_busy_time() {
     let mut staggered = even.clone();
     // Rows cut apart, so rays crossing between rows are forwarded.
     staggered.row_cuts = Some((0..16).map(|r| vec![0, 4 + r % 3 * 4, 16, 20 + r % 5, 32]).collect());
-    // Unstaggered, the map's account is close. Forwarded rays cost some nodes
-    // more than it says (up to 26% of their busy time here, 5% in all; it
-    // does not come from pool refusals, which deeper pools do not change).
-    for (p, node_error, total_error) in [(even, 0.15, 0.03), (staggered, 0.3, 0.06)] {
+    // Measured within 1.9% per node, staggered or not. (Before the pool shared
+    // its spare slots, refusals made forwarding nodes pay up to 26% more.)
+    for p in [even, staggered] {
+        let (node_error, total_error) = (0.03, 0.01);
         let r = render_partitioned(&s, &opts, p.clone()).unwrap();
         assert!(r.frame.sums == want.sums, "the partition changed the image");
         let costs = p.node_costs(&map);

@@ -66,6 +66,7 @@ fn depth_two_queues_never_deadlock_or_drop() {
     let mut opts = RenderOptions::new([4, 4, 4]);
     opts.size = size;
     opts.level_depth = 2;
+    opts.shared_slots = Some(0);
     opts.sim.link.capacity = 2;
     opts.sim.host_link.capacity = 2;
     let r = render_sim(&s, &opts).expect("the array finishes");
@@ -91,6 +92,7 @@ fn depth_one_queues_with_sliding_boundaries_finish() {
             let mut opts = RenderOptions::new(array);
             opts.size = [24, 24];
             opts.level_depth = 1;
+            opts.shared_slots = Some(0);
             opts.balance = balance;
             let r =
                 render_sim(&s, &opts).unwrap_or_else(|e| panic!("seed {seed} {array:?} {balance:?}: {e}"));
@@ -110,6 +112,7 @@ fn a_node_far_ahead_in_virtual_time_is_waited_for() {
     let mut opts = RenderOptions::new([2, 2, 2]);
     opts.size = size;
     opts.level_depth = 2;
+    opts.shared_slots = Some(0);
     opts.sim.cost.shade = 3_000_000;
     opts.sim.cost.ray_message = 50_000;
     opts.sim.cost.short_message = 50_000;

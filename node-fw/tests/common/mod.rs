@@ -18,6 +18,8 @@ pub fn render_start(balance: Balance) -> RenderStart {
         tile: [0, 0, 8, 8],
         credit: 1 << 32,
         level_depth: 2,
+        // No shared slots: the node tests want back-pressure with few rays.
+        shared_slots: Some(0),
         balance: Some(balance),
     }
 }
