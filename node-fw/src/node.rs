@@ -499,7 +499,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// neighbour has refused us since its last `Space` (its next freed slot
     /// sends another).
     fn retry_refused(&mut self, port: Port) {
-        let held = self.pool.next_work_where(|s| s.stage == Stage::Refused(port));
+        let held = self.pool.highest_class_where(|s| s.stage == Stage::Refused(port));
         if let Some(slot) = held.and_then(|i| self.pool.get_mut(i)) {
             slot.stage = Stage::Outbound(port);
         }
@@ -532,8 +532,15 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.phase == Phase::Rendering && self.render.is_some_and(|r| self.cursor < tile_pixels(&r.tile))
     }
 
+    /// One piece of work: the ready ray of the lowest class, else a new
+    /// initial ray. Low classes are early in their lives, so serving them
+    /// first hands the nodes further on their work soonest: on 8x8x8 with
+    /// spheres in the middle, serving the highest class first left nodes there
+    /// half idle until late, for a makespan 1.5x the busiest node's time (1.28x
+    /// this way). Admission alone keeps the pool deadlock-free; the order only
+    /// decides when.
     fn compute(&mut self, work: &mut Work) {
-        let ready = self.pool.next_work_where(|slot| match slot.stage {
+        let ready = self.pool.lowest_class_where(|slot| match slot.stage {
             Stage::Trace => true,
             Stage::Shade { .. } => self.pool.can_admit(slot.ray.class.saturating_add(1)),
             _ => false,

@@ -252,15 +252,26 @@ impl<const P: usize> RayPool<P> {
         self.held.get(n).copied()
     }
 
-    /// The ray of the highest class among those `ready` accepts: finishing high
-    /// classes first frees the reserved levels soonest. Ties: lowest slot.
-    pub fn next_work_where(&self, ready: impl Fn(&Slot) -> bool) -> Option<u16> {
+    /// The ray of the highest class among those `ready` accepts (ties: lowest
+    /// slot): the one a freed slot at any level can take.
+    pub fn highest_class_where(&self, ready: impl Fn(&Slot) -> bool) -> Option<u16> {
+        self.first_where(ready, |class, best| class > best)
+    }
+
+    /// The ray of the lowest class among those `ready` accepts (ties: lowest
+    /// slot): the one earliest in its life, whose work further on (its walk
+    /// through the next nodes, its children) is the longest still to come.
+    pub fn lowest_class_where(&self, ready: impl Fn(&Slot) -> bool) -> Option<u16> {
+        self.first_where(ready, |class, best| class < best)
+    }
+
+    fn first_where(&self, ready: impl Fn(&Slot) -> bool, before: impl Fn(u16, u16) -> bool) -> Option<u16> {
         let mut best: Option<(u16, u16)> = None;
         for (i, slot) in self.iter() {
-            let better =
-                best.is_none_or(|(class, at)| slot.ray.class > class || (slot.ray.class == class && i < at));
+            let c = slot.ray.class;
+            let better = best.is_none_or(|(class, at)| before(c, class) || (c == class && i < at));
             if better && ready(slot) {
-                best = Some((slot.ray.class, i));
+                best = Some((c, i));
             }
         }
         best.map(|(_, i)| i)
