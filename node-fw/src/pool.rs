@@ -88,11 +88,6 @@ pub struct Slot {
     level: u16,
 }
 
-/// Slots at level 0 beyond `depth`: a number, or every slot left over.
-fn shared_slots(capacity: u32, levels: u32, shared: Option<u16>) -> u32 {
-    shared.map_or(capacity.saturating_sub(levels), u32::from)
-}
-
 /// Why a pool cannot be configured.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PoolTooSmall {
@@ -142,15 +137,15 @@ impl<const P: usize> RayPool<P> {
     /// empties the pool.
     pub fn configure(&mut self, top: u32, depth: u16, shared: Option<u16>) -> Result<(), PoolTooSmall> {
         let levels = (top + 1).saturating_mul(u32::from(depth));
-        let needed = levels.saturating_add(shared.map_or(0, u32::from));
-        let base = u32::from(depth) + shared_slots(P as u32, levels, shared);
+        let shared = shared.map_or((P as u32).saturating_sub(levels), u32::from);
+        let needed = levels.saturating_add(shared);
         if needed > P as u32 || top as usize >= MAX_LEVELS || depth == 0 {
             return Err(PoolTooSmall { capacity: P as u32, needed });
         }
         self.top = top as u16;
         self.depth = depth;
         // At most P, and P fits a u16 (slot indices are u16).
-        self.base = u16::try_from(base).unwrap_or(u16::MAX);
+        self.base = u16::try_from(u32::from(depth) + shared).unwrap_or(u16::MAX);
         self.clear();
         Ok(())
     }
