@@ -49,13 +49,29 @@ pub fn entry_tiles(
     let others: Vec<usize> = (0..3).filter(|&a| a != view_axis).collect();
     let (across, down) = image_axes(&coords, w, others[0], others[1]);
     let at = |x: usize, y: usize| coords.get(y * w + x).copied().flatten();
-    let cols = bands(w, partition.array[across], |x| (0..h).filter_map(move |y| at(x, y)).map(|c| c[across]));
-    let rows = bands(h, partition.array[down], |y| (0..w).filter_map(move |x| at(x, y)).map(|c| c[down]));
+    // Bands of image columns by the across coordinate, counting rows y0..y1;
+    // bands of image rows by the down coordinate, counting columns x0..x1.
+    let col_bands = |y0: usize, y1: usize| {
+        bands(w, partition.array[across], |x| (y0..y1).filter_map(move |y| at(x, y)).map(|c| c[across]))
+    };
+    let row_bands = |x0: usize, x1: usize| {
+        bands(h, partition.array[down], |y| (x0..x1).filter_map(move |x| at(x, y)).map(|c| c[down]))
+    };
+    let (cols, rows) = (col_bands(0, h), row_bands(0, w));
+    // Columns cut per slab: each slab's band of image lines is cut on its own.
+    let slab_axis = partition.slab_cuts.as_ref().map(|_| partition.routed_axes()[0]);
+    let slab_axis = slab_axis.filter(|_| usize::from(partition.driving_axis) == view_axis);
+    let rows_per_col = (slab_axis == Some(across))
+        .then(|| cols.iter().map(|&(x0, x1)| row_bands(x0, x1)).collect::<Vec<_>>());
+    let cols_per_row =
+        (slab_axis == Some(down)).then(|| rows.iter().map(|&(y0, y1)| col_bands(y0, y1)).collect::<Vec<_>>());
     let front = if basis.eye[view_axis] < g[view_axis] / 2.0 { 0 } else { partition.array[view_axis] - 1 };
     (0..partition.len())
         .map(|id| {
             let c = partition.coord(id);
-            let (col, row) = (cols[usize::from(c[across])], rows[usize::from(c[down])]);
+            let (i, j) = (usize::from(c[across]), usize::from(c[down]));
+            let col = cols_per_row.as_ref().map_or(cols[i], |per| per[j][i]);
+            let row = rows_per_col.as_ref().map_or(rows[j], |per| per[i][j]);
             if c[view_axis] != front || col.0 == col.1 || row.0 == row.1 {
                 return [0; 4];
             }
@@ -181,14 +197,48 @@ mod tests {
         hits.iter().all(|&n| n == 1)
     }
 
+    /// Columns (along y) cut per slab (along x), none lined up with the next.
+    fn jagged(mut p: Partition) -> Partition {
+        let (slabs, columns) = (usize::from(p.array[0]), usize::from(p.array[1]));
+        let n = *p.cuts[1].last().unwrap();
+        let shifted = |s: usize| {
+            let mut cuts = p.cuts[1].clone();
+            for (i, c) in cuts.iter_mut().enumerate().take(columns).skip(1) {
+                *c = (*c + (s + i) as u16 % 3).min(n - (columns - i) as u16);
+            }
+            cuts
+        };
+        p.slab_cuts = Some((0..slabs).map(shifted).collect());
+        p
+    }
+
     #[test]
     fn front_nodes_share_the_image_and_rays_start_on_their_entry_node() {
-        let scene = Scene::random(10, 1, 1.0, [16; 3]).unwrap();
+        let mut scene = Scene::random(10, 1, 1.0, [16; 3]).unwrap();
         let size = [64, 48];
-        let basis = PixelBasis::new(&scene.camera(), size[0], size[1]);
-        for array in [[4, 4, 4], [2, 3, 1], [1, 1, 5], [3, 2, 2]] {
-            let p = Partition::even(scene.grid, array, 2).unwrap();
-            let t = entry_tiles(&basis, scene.grid, &p, 2, size);
+        let even =
+            [[4, 4, 4], [2, 3, 1], [1, 1, 5], [3, 2, 2]].map(|a| Partition::even(scene.grid, a, 2).unwrap());
+        let jagged = [[4, 4, 4], [3, 2, 2]].map(|a| jagged(Partition::even(scene.grid, a, 2).unwrap()));
+        assert!(jagged.iter().all(|p| p.slab_cuts.as_ref().is_some_and(|s| s[0] != s[1])));
+        let partitions: Vec<_> = even.into_iter().chain(jagged).collect();
+        // Upright, and turned a quarter so that the image's rows run along x.
+        for up in [[0.0, 1.0, 0.0], [1.0, 0.0, 0.0]] {
+            let mut cam = scene.camera();
+            cam.up = up;
+            scene.camera = Some(cam);
+            let basis = PixelBasis::new(&scene.camera(), size[0], size[1]);
+            for p in &partitions {
+                front_tiles_hold(&scene, &basis, p, size);
+            }
+        }
+    }
+
+    /// Every pixel in one tile, only the front layer creating rays, and most
+    /// rays created by the node whose box they enter.
+    fn front_tiles_hold(scene: &Scene, basis: &PixelBasis, p: &Partition, size: [u16; 2]) {
+        let array = p.array;
+        {
+            let t = entry_tiles(basis, scene.grid, p, 2, size);
             assert!(covers_once(&t, size), "{array:?}: {t:?}");
             // Only the front layer (z = 0, the eye is at negative z) creates rays.
             for (id, tile) in t.iter().enumerate() {
@@ -207,8 +257,11 @@ mod tests {
                             basis.corner[a] + f64::from(x) * basis.du[a] + f64::from(y) * basis.dv[a]
                         });
                         if let Some(e) = entry_point(basis.eye, d, g) {
+                            let b = p.bounds(id);
+                            let inside =
+                                (0..3).all(|a| e[a] >= f64::from(b.lo[a]) && e[a] < f64::from(b.hi[a]));
                             entering += 1;
-                            at_home += usize::from(p.owner_of(e, scene.grid) == id);
+                            at_home += usize::from(inside);
                         }
                     }
                 }

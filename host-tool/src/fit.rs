@@ -3,6 +3,9 @@
 //! each row along the driving axis exactly, and every node's cost with rays
 //! routed as the nodes route them.
 
+use node_fw::CubeBox;
+use node_fw::link::Port;
+
 use crate::cost_map::CostMap;
 use crate::error::{HostError, input};
 use crate::partition::Partition;
@@ -44,25 +47,63 @@ impl Partition {
             }
             (p, best) = (next, busiest);
         }
-        p.refine(map);
-        Ok(p)
+        let whole = p.refine(map);
+        // Beyond whole planes: each slab across the first routed axis cuts its
+        // own columns, from the whole cuts or from its own cubes' costs.
+        let mut best = (whole, p.clone());
+        for start in [p.slabs_alike(), p.slabs_on_their_own(&cells)] {
+            let mut jagged = start;
+            let s = jagged.refine(map);
+            if s < best.0 {
+                best = (s, jagged);
+            }
+        }
+        Ok(best.1)
     }
 
-    /// Moves single planes across the driving axis by a cube, rows re-cut,
-    /// while that lowers the busiest node's cost (ties: the sum of squares).
-    fn refine(&mut self, map: &CostMap) {
+    /// This partition with every slab cut into the columns all share now.
+    fn slabs_alike(&self) -> Self {
+        let [slab_axis, column_axis] = self.routed_axes();
+        let cuts = vec![self.cuts[column_axis].clone(); usize::from(self.array[slab_axis])];
+        Self { slab_cuts: Some(cuts), ..self.clone() }
+    }
+
+    /// This partition with each slab cut into columns of even cost (`cells`,
+    /// x fastest), on its own.
+    fn slabs_on_their_own(&self, cells: &[u64]) -> Self {
+        let [slab_axis, column_axis] = self.routed_axes();
+        let grid = self.grid();
+        let [nx, ny, _] = grid.map(usize::from);
+        let slabs = self.cuts[slab_axis].windows(2).map(|w| {
+            let mut planes = vec![vec![0u64]; usize::from(grid[column_axis])];
+            for (i, &c) in cells.iter().enumerate() {
+                let cell = [i % nx, i / nx % ny, i / (nx * ny)];
+                if (usize::from(w[0])..usize::from(w[1])).contains(&cell[slab_axis]) {
+                    planes[cell[column_axis]][0] += c;
+                }
+            }
+            bottleneck_cuts(&planes, usize::from(self.array[column_axis]))
+        });
+        Self { slab_cuts: Some(slabs.collect()), ..self.clone() }
+    }
+
+    /// Cubes per axis: the last cut along each.
+    fn grid(&self) -> [u16; 3] {
+        std::array::from_fn(|a| self.cuts[a].last().copied().unwrap_or(0))
+    }
+
+    /// Moves single planes across the driving axis by a cube (a slab's own
+    /// where slabs cut their columns), rows re-cut, while that lowers the
+    /// busiest node's cost (ties: the sum of squares); returns the score.
+    fn refine(&mut self, map: &CostMap) -> Score {
         let mut best = self.cut_rows(map);
         // Each accepted move lowers the score, so this ends; the cap bounds the time.
         for _ in 0..4 * usize::from(map.grid.iter().copied().max().unwrap_or(1)) {
             let mut improved = false;
-            for a in self.row_axes() {
-                for i in 1..usize::from(self.array[a]) {
-                    for next_at in [self.cuts[a][i] - 1, self.cuts[a][i] + 1] {
-                        if next_at <= self.cuts[a][i - 1] || next_at >= self.cuts[a][i + 1] {
-                            continue;
-                        }
-                        let mut next = self.clone();
-                        next.cuts[a][i] = next_at;
+            for plane in self.movable_planes() {
+                for step in [-1, 1] {
+                    let mut next = self.clone();
+                    if next.move_plane(plane, step) {
                         let s = next.cut_rows(map);
                         if s < best {
                             (*self, best) = (next, s);
@@ -75,6 +116,38 @@ impl Partition {
                 break;
             }
         }
+        best
+    }
+
+    /// Every inner plane across a non-driving axis: (axis, slab, index), the
+    /// slab `None` where the planes are whole.
+    fn movable_planes(&self) -> Vec<(usize, Option<usize>, usize)> {
+        let column_axis = self.routed_axes()[1];
+        let slabs = self.slab_cuts.as_ref().map_or(0, Vec::len);
+        let mut planes = Vec::new();
+        for a in self.row_axes() {
+            let inner = 1..usize::from(self.array[a]);
+            if a == column_axis && slabs > 0 {
+                planes.extend((0..slabs).flat_map(|s| inner.clone().map(move |i| (a, Some(s), i))));
+            } else {
+                planes.extend(inner.map(|i| (a, None, i)));
+            }
+        }
+        planes
+    }
+
+    /// Moves a plane by `step` cubes if every node keeps a cube on each side.
+    fn move_plane(&mut self, (axis, slab, i): (usize, Option<usize>, usize), step: i32) -> bool {
+        let cuts = match (slab, self.slab_cuts.as_mut()) {
+            (Some(s), Some(slabs)) => &mut slabs[s],
+            _ => &mut self.cuts[axis],
+        };
+        let at = i32::from(cuts[i]) + step;
+        if at <= i32::from(cuts[i - 1]) || at >= i32::from(cuts[i + 1]) {
+            return false;
+        }
+        cuts[i] = at as u16;
+        true
     }
 
     /// Cuts the rows along the driving axis, each on its own (staggered, as
@@ -105,6 +178,7 @@ impl Partition {
     /// both sides of a hop.
     pub fn node_costs(&self, map: &CostMap) -> Vec<u64> {
         let owner = self.owners(map.grid);
+        let boxes: Vec<_> = (0..self.len()).map(|id| self.bounds(id)).collect();
         let mut cost = vec![0u64; self.len()];
         for (i, &o) in owner.iter().enumerate() {
             cost[o] += map.cell(i);
@@ -119,33 +193,33 @@ impl Partition {
                     continue;
                 };
                 if lo != hi {
-                    self.charge_route(&mut cost, lo, hi, a, map.up[a][i]);
-                    self.charge_route(&mut cost, hi, lo, a, map.down[a][i]);
+                    let mut above = cell.map(|c| c as i32);
+                    above[a] += 1;
+                    self.charge_route(&boxes, &mut cost, lo, above, map.up[a][i]);
+                    self.charge_route(&boxes, &mut cost, hi, cell.map(|c| c as i32), map.down[a][i]);
                 }
             }
         }
         cost
     }
 
-    /// Charges `per_side` to both ends of every hop of a ray stepping across
-    /// `axis` from node `from`'s cube into node `to`'s.
-    fn charge_route(&self, cost: &mut [u64], from: usize, to: usize, axis: usize, per_side: u64) {
+    /// Charges `per_side` to both ends of every hop of a ray leaving node
+    /// `from` for `cell`, each hop where that node's box sends it
+    /// ([`node_fw::route::toward`], the nodes' own rule).
+    fn charge_route(&self, boxes: &[CubeBox], cost: &mut [u64], from: usize, cell: [i32; 3], per_side: u64) {
         let d = usize::from(self.driving_axis);
         let mut at = from;
-        let mut next = self.coord(from);
-        let target = self.coord(to);
-        next[axis] = target[axis];
-        loop {
-            // Every coordinate on the way lies between two nodes' own.
-            let id = node_fw::wiring::index_of(next, self.array).map_or(to, usize::from);
+        // Every hop moves toward the owner, so a route is shorter than the array.
+        for _ in 0..self.len() {
+            let Some(port) = node_fw::route::toward(&boxes[at], cell, d) else { break };
+            let mut next = self.coord(at);
+            let axis = port.axis().unwrap_or(0);
+            next[axis] =
+                if port == Port::toward(axis, true) { next[axis] + 1 } else { next[axis].wrapping_sub(1) };
+            let Some(id) = node_fw::wiring::index_of(next, self.array).map(usize::from) else { break };
             cost[at] += per_side;
             cost[id] += per_side;
-            if id == to || axis == d {
-                break;
-            }
-            // Forwarded along the driving axis toward the owner.
             at = id;
-            next[d] = if next[d] < target[d] { next[d] + 1 } else { next[d] - 1 };
         }
     }
 
@@ -194,11 +268,16 @@ impl Partition {
     fn row_profile(&self, map: &CostMap, row: usize) -> RowProfile {
         let d = usize::from(self.driving_axis);
         let [a0, a1] = self.row_axes();
-        let r = [row % usize::from(self.array[a0]), row / usize::from(self.array[a0])];
+        let mut node = [0u16; 3];
+        node[a0] = (row % usize::from(self.array[a0])) as u16;
+        node[a1] = (row / usize::from(self.array[a0])) as u16;
         let n = usize::from(map.grid[d]);
         let (mut layers, mut planes) = (vec![0u64; n], vec![0u64; n + 1]);
-        let span = |a: usize, r: usize| (self.cuts[a][r], self.cuts[a][r + 1]);
-        let ((lo0, hi0), (lo1, hi1)) = (span(a0, r[0]), span(a1, r[1]));
+        let span = |a: usize| {
+            let cuts = self.cuts_at(a, node);
+            (cuts[usize::from(node[a])], cuts[usize::from(node[a]) + 1])
+        };
+        let ((lo0, hi0), (lo1, hi1)) = (span(a0), span(a1));
         let at = |c0: u16, c1: u16, k: usize| {
             let mut cell = [0i32; 3];
             (cell[a0], cell[a1], cell[d]) = (i32::from(c0), i32::from(c1), k as i32);
@@ -461,6 +540,40 @@ mod tests {
             let routed = p.node_costs(&map);
             assert!((0..p.len()).all(|id| routed[id] == map.node_cost(&p.bounds(id))));
         }
+    }
+
+    #[test]
+    fn fitted_partition_cuts_each_slab_into_its_own_columns() {
+        // The cost sits low in y where x < 8 and high in y where x >= 8: whole
+        // planes across y cannot split both slabs' work evenly.
+        let grid = [16u16; 3];
+        let mut cost = vec![1u64; 16 * 16 * 16];
+        for (i, c) in cost.iter_mut().enumerate() {
+            let (x, y) = (i % 16, i / 16 % 16);
+            if (x < 8 && y < 4) || (x >= 8 && y >= 12) {
+                *c = 100;
+            }
+        }
+        let map = CostMap { compute: cost, ..CostMap::new(grid) };
+        let fitted = Partition::fitted(grid, [2, 2, 2], 2, &map).unwrap();
+        let max = |p: &Partition| *p.node_costs(&map).iter().max().unwrap();
+        // The best whole planes, by trying every pair of cuts across x and y.
+        let mut whole = u64::MAX;
+        for x in 1..16 {
+            for y in 1..16 {
+                let mut p = Partition::even(grid, [2, 2, 2], 2).unwrap();
+                (p.cuts[0][1], p.cuts[1][1]) = (x, y);
+                whole = whole.min(p.cut_rows(&map).0);
+            }
+        }
+        let slabs = fitted.slab_cuts.as_ref().expect("columns cut per slab");
+        assert!(slabs[0][1] < 8 && slabs[1][1] > 8, "{slabs:?}");
+        assert!(max(&fitted) * 10 < whole * 8, "fitted {} against whole planes {whole}", max(&fitted));
+        // Within 10% of an eighth of the cost per node.
+        let total: u64 = map.compute.iter().sum();
+        assert!(max(&fitted) * 8 <= total * 11 / 10, "{} of {total}", max(&fitted));
+        let volume: u64 = (0..fitted.len()).map(|id| fitted.bounds(id).volume()).sum();
+        assert_eq!(volume, 16 * 16 * 16);
     }
 
     /// The busiest part of any row under `cuts`, priced from scratch.

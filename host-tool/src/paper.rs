@@ -14,7 +14,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use link_proto::{Balance, SlidePolicy};
+use link_proto::{Balance, Boundaries, SlidePolicy};
 
 use crate::error::HostError;
 use crate::output::write_atomic;
@@ -123,14 +123,14 @@ fn options(
     side: [u16; 3],
     cfg: &PaperConfig,
     initial: Initial,
-    sliding: bool,
+    boundaries: Boundaries,
 ) -> RenderOptions {
     let mut opts = RenderOptions::new(side);
     opts.size = cfg.size;
     opts.initial = initial;
     // The deepest pool that fits this array's class levels (at most 4). The
     // arrays here are cubes, so any axis gives the bound of the driving one.
-    let levels = node_fw::pool::class_bound(side, scene.max_depth, sliding.then_some(0)) + 1;
+    let levels = node_fw::pool::class_bound(side, scene.max_depth, 0, boundaries) + 1;
     opts.level_depth = (u32::from(sim_board::SimNode::capacity().rays) / levels).clamp(1, 4) as u16;
     opts
 }
@@ -144,8 +144,12 @@ fn run_on(
     static_makespan: u64,
     partition: Option<crate::partition::Partition>,
 ) -> Result<Run, HostError> {
-    let mut opts =
-        options(scene, side, cfg, initial, !matches!(policy, Policy::Static) || partition.is_some());
+    let sliding = !matches!(policy, Policy::Static);
+    let lined_up =
+        partition.as_ref().map_or(if sliding { Boundaries::StaggeredRows } else { Boundaries::Whole }, |p| {
+            p.boundaries_when(sliding)
+        });
+    let mut opts = options(scene, side, cfg, initial, lined_up);
     // About 64 load comparisons over a frame, threshold 3 (loads are running / waiting).
     let interval = (static_makespan / 64).max(10_000);
     if !matches!(policy, Policy::Static) {
@@ -192,7 +196,7 @@ fn preview(
     cfg: &PaperConfig,
     initial: Initial,
 ) -> Result<Partition, HostError> {
-    let mut opts = options(scene, side, cfg, initial, true);
+    let mut opts = options(scene, side, cfg, initial, Boundaries::StaggeredRows);
     opts.layout = Layout::Preview;
     opts.driving_axis = Some(crate::partition::view_axis(scene));
     crate::render::initial_partition(scene, &opts)

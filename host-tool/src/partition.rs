@@ -1,7 +1,7 @@
 //! The static partition: subregion boxes, sub-image tiles, the eye's node, and a
 //! capacity check before anything is sent.
 
-use link_proto::{Assign, Capacity};
+use link_proto::{Assign, Boundaries, Capacity};
 use node_fw::{CubeBox, Grid, Sphere};
 
 use crate::error::{HostError, input};
@@ -20,6 +20,10 @@ pub struct Partition {
     /// along the driving axis that replace `cuts[driving_axis]` (staggered
     /// boundaries, as after sliding or from an oracle).
     pub row_cuts: Option<Vec<Vec<u16>>>,
+    /// Per slab of nodes across the first routed axis ([`Self::routed_axes`]),
+    /// cuts along the second that replace its `cuts` (beyond the paper: the
+    /// columns of a fitted partition need not line up from slab to slab).
+    pub slab_cuts: Option<Vec<Vec<u16>>>,
 }
 
 impl Partition {
@@ -39,7 +43,7 @@ impl Partition {
         let cuts = std::array::from_fn(|a| {
             (0..=array[a]).map(|i| (u32::from(i) * u32::from(grid[a]) / u32::from(array[a])) as u16).collect()
         });
-        Ok(Self { array, cuts, driving_axis, row_cuts: None })
+        Ok(Self { array, cuts, driving_axis, row_cuts: None, slab_cuts: None })
     }
 
     /// The row of node coordinate `c` (index over the non-driving axes).
@@ -61,6 +65,26 @@ impl Partition {
         }
     }
 
+    /// The two axes across the driving axis in the order the nodes route
+    /// rays along them ([`node_fw::route`]): planes across the first are
+    /// whole; across the second, whole within each slab of the first.
+    pub fn routed_axes(&self) -> [usize; 2] {
+        let d = usize::from(self.driving_axis);
+        [(d + 1) % 3, (d + 2) % 3]
+    }
+
+    /// The cuts along `axis` of the nodes sharing node coordinate `c`'s slab
+    /// (across the first routed axis) and row (along the driving axis).
+    pub fn cuts_at(&self, axis: usize, c: [u16; 3]) -> &[u16] {
+        let d = usize::from(self.driving_axis);
+        let [slab_axis, column_axis] = self.routed_axes();
+        match (&self.row_cuts, &self.slab_cuts) {
+            (Some(rows), _) if axis == d => &rows[self.row_of(c)],
+            (_, Some(slabs)) if axis == column_axis => &slabs[usize::from(c[slab_axis])],
+            _ => &self.cuts[axis],
+        }
+    }
+
     /// Number of nodes.
     pub fn len(&self) -> usize {
         self.array.iter().map(|&n| usize::from(n)).product()
@@ -79,14 +103,9 @@ impl Partition {
     /// The box of node `id`.
     pub fn bounds(&self, id: usize) -> CubeBox {
         let c = self.coord(id);
-        let d = usize::from(self.driving_axis);
-        let cuts = |a: usize| match &self.row_cuts {
-            Some(rows) if a == d => &rows[self.row_of(c)],
-            _ => &self.cuts[a],
-        };
         CubeBox {
-            lo: std::array::from_fn(|a| cuts(a)[usize::from(c[a])]),
-            hi: std::array::from_fn(|a| cuts(a)[usize::from(c[a]) + 1]),
+            lo: std::array::from_fn(|a| self.cuts_at(a, c)[usize::from(c[a])]),
+            hi: std::array::from_fn(|a| self.cuts_at(a, c)[usize::from(c[a]) + 1]),
         }
     }
 
@@ -99,17 +118,41 @@ impl Partition {
             lo: b.lo,
             hi: b.hi,
             driving_axis: self.driving_axis,
-            staggered: self.row_cuts.is_some(),
+            boundaries: self.boundaries(),
         }
     }
 
-    /// The node whose box holds `p` (clamped into the grid first).
+    /// How far the boxes' boundaries line up: the least kind this partition
+    /// needs.
+    pub fn boundaries(&self) -> Boundaries {
+        if self.slab_cuts.is_some() {
+            Boundaries::StaggeredColumns
+        } else if self.row_cuts.is_some() {
+            Boundaries::StaggeredRows
+        } else {
+            Boundaries::Whole
+        }
+    }
+
+    /// How far the boundaries line up during a render, sliding or not
+    /// (sliding staggers the rows).
+    pub fn boundaries_when(&self, sliding: bool) -> Boundaries {
+        if sliding { self.boundaries().max(Boundaries::StaggeredRows) } else { self.boundaries() }
+    }
+
+    /// The node whose box holds `p` (clamped into the grid first): found in
+    /// routing order, each axis's cuts known once the earlier ones are.
     pub fn owner_of(&self, p: [f64; 3], grid: [u16; 3]) -> usize {
         let cell: [u16; 3] = std::array::from_fn(|a| p[a].floor().clamp(0.0, f64::from(grid[a] - 1)) as u16);
-        let idx: [usize; 3] = std::array::from_fn(|a| {
-            self.cuts[a].windows(2).position(|w| cell[a] >= w[0] && cell[a] < w[1]).unwrap_or(0)
-        });
-        idx[0] + usize::from(self.array[0]) * (idx[1] + usize::from(self.array[1]) * idx[2])
+        let [slab_axis, column_axis] = self.routed_axes();
+        let mut c = [0u16; 3];
+        for a in [slab_axis, column_axis, usize::from(self.driving_axis)] {
+            let at = self.cuts_at(a, c).windows(2).position(|w| cell[a] >= w[0] && cell[a] < w[1]);
+            c[a] = at.unwrap_or(0) as u16;
+        }
+        usize::from(c[0])
+            + usize::from(self.array[0])
+                * (usize::from(c[1]) + usize::from(self.array[1]) * usize::from(c[2]))
     }
 
     /// Checks that every node can hold its part of the scene; the error names

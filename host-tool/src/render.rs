@@ -234,9 +234,8 @@ pub fn check_frame(
         return Err(HostError::ZeroSize(format!("image size {w}x{h} must be at least 1x1")));
     }
     partition.check_capacity(scene, capacity)?;
-    let sliding = opts.balance.is_some() || partition.row_cuts.is_some();
-    let top =
-        class_bound(opts.array, scene.max_depth, sliding.then_some(usize::from(partition.driving_axis)));
+    let boundaries = partition.boundaries_when(opts.balance.is_some());
+    let top = class_bound(opts.array, scene.max_depth, usize::from(partition.driving_axis), boundaries);
     let shared = opts.shared_slots.map_or(0, u32::from);
     let needed = (top + 1) * u32::from(opts.level_depth) + shared;
     if opts.level_depth == 0 || needed > u32::from(capacity.rays) {

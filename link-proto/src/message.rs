@@ -229,9 +229,25 @@ pub struct Assign {
     pub hi: [u16; 3],
     /// Driving axis of the sliding boundaries (0 = x, 1 = y, 2 = z).
     pub driving_axis: u8,
-    /// Boundaries along the driving axis differ from row to row (rays may be
-    /// forwarded along it; the node sizes its pool for that).
-    pub staggered: bool,
+    /// Which boundaries need not line up with the neighbours' (rays crossing
+    /// them may be forwarded; the node sizes its pool for that).
+    pub boundaries: Boundaries,
+}
+
+/// How far the subregions' boundaries line up across the array, from most
+/// to least: each kind lets rays be forwarded along more axes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize, MaxSize)]
+pub enum Boundaries {
+    /// Every boundary a whole plane: a ray crossing one lands on its owner.
+    Whole,
+    /// Boundaries across the driving axis differ from row to row (as sliding
+    /// leaves them, the paper's Fig. 6): forwarded along the driving axis.
+    StaggeredRows,
+    /// As `StaggeredRows`, and the columns across the second routed axis
+    /// (`(driving + 2) % 3`) differ from slab to slab across the first
+    /// (`(driving + 1) % 3`): forwarded along the second axis too. A fitted
+    /// partition's, beyond the paper.
+    StaggeredColumns,
 }
 
 /// How initial rays are created.

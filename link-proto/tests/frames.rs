@@ -107,7 +107,8 @@ fn arb_message() -> impl Strategy<Value = Message> {
             lo: a[2],
             hi: a[3],
             driving_axis,
-            staggered: driving_axis % 2 == 0,
+            boundaries: [Boundaries::Whole, Boundaries::StaggeredRows, Boundaries::StaggeredColumns]
+                [usize::from(driving_axis % 3)],
         })),
         (any::<u32>(), any::<[u16; 2]>(), camera, any::<bool>(), any::<[u16; 4]>(), any::<u64>()).prop_map(
             |(frame, size, camera, eye, tile, credit)| Message::RenderStart(RenderStart {

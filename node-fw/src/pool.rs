@@ -16,7 +16,7 @@
 //! stood empty for classes that never came, and each refusal cost it a ray
 //! message, a reply and a space notice.
 
-use link_proto::{RayMsg, Retire};
+use link_proto::{Boundaries, RayMsg, Retire};
 
 use crate::link::Port;
 
@@ -24,8 +24,8 @@ use crate::link::Port;
 pub const MAX_LEVELS: usize = 1024;
 
 /// Upper bound on the class of any ray in an `array` of nodes with at most
-/// `max_depth` reflections; `sliding` names the driving axis when boundaries
-/// slide.
+/// `max_depth` reflections, boundaries lined up as `boundaries` says across
+/// `driving_axis`.
 ///
 /// A ray's life: routing from its creator to its entry node (at most `h`
 /// hops), then per generation a walk and one spawn, for `max_depth`
@@ -34,18 +34,21 @@ pub const MAX_LEVELS: usize = 1024;
 /// crossing of a non-driving axis may land beside the owner and be forwarded
 /// along the driving axis (at most `D - 1` hops, the paper's Fig. 6), and a
 /// boundary that moves while a ray is in flight costs a forward more: `D` is
-/// allowed per walk for that. Classes above the bound (only from unusually
-/// many boundary moves during one walk) share the top level.
-pub fn class_bound(array: [u16; 3], max_depth: u8, sliding: Option<usize>) -> u32 {
+/// allowed per walk for that. With staggered columns a crossing of the first
+/// routed axis may also land beside the owner's column and be forwarded
+/// across the second (at most `B - 1` hops more). Classes above the bound
+/// (only from unusually many boundary moves during one walk) share the top
+/// level.
+pub fn class_bound(array: [u16; 3], max_depth: u8, driving_axis: usize, boundaries: Boundaries) -> u32 {
     let span = |n: u16| u32::from(n.max(1)) - 1;
     let h: u32 = array.iter().map(|&n| span(n)).sum();
-    let forwards = match sliding {
-        Some(d) => {
-            let along = array.get(d).copied().unwrap_or(1);
-            let across: u32 = array.iter().enumerate().filter(|(a, _)| *a != d).map(|(_, &n)| span(n)).sum();
-            across * span(along) + u32::from(along)
-        }
-        None => 0,
+    let n = |a: usize| array.get(a % 3).copied().unwrap_or(1);
+    let [along, slabs, columns] = [n(driving_axis), n(driving_axis + 1), n(driving_axis + 2)];
+    let rows = (span(slabs) + span(columns)) * span(along) + u32::from(along);
+    let forwards = match boundaries {
+        Boundaries::Whole => 0,
+        Boundaries::StaggeredRows => rows,
+        Boundaries::StaggeredColumns => rows + span(slabs) * span(columns),
     };
     let generations = u32::from(max_depth) + 2;
     h + generations * (h + forwards) + generations - 1

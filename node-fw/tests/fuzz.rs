@@ -132,7 +132,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 lo,
                 hi,
                 driving_axis,
-                staggered: driving_axis == 1,
+                boundaries: if driving_axis == 1 { Boundaries::StaggeredRows } else { Boundaries::Whole },
             })),
         4 => arb_sphere().prop_map(Message::Sphere),
         1 => (proptest::array::uniform3(small_i32()), any::<u8>())
@@ -257,7 +257,7 @@ fn valid_setup(spheres: &[SphereMsg]) -> Vec<(Port, Message)> {
                 lo: [0; 3],
                 hi: [8, 8, 8],
                 driving_axis: 0,
-                staggered: false,
+                boundaries: Boundaries::Whole,
             }),
         ),
     ];

@@ -1,7 +1,7 @@
 //! Restarts seen through framed links: a new host session makes a node start
 //! over and say hello again; a restarted neighbour is reported to the host.
 
-use link_proto::{Assign, Capacity, ErrorCode, Hello, Message, PROTOCOL_VERSION, SceneHeader};
+use link_proto::{Assign, Boundaries, Capacity, ErrorCode, Hello, Message, PROTOCOL_VERSION, SceneHeader};
 use node_fw::framed::FramedLinks;
 use node_fw::node::Node;
 use node_fw::reliable::Channel;
@@ -59,7 +59,14 @@ fn hello() -> Message {
 fn assign() -> Message {
     let c = [0, 0, 0];
     let a = [1, 1, 1];
-    Message::Assign(Assign { array: a, coord: c, lo: c, hi: [4, 4, 4], driving_axis: 0, staggered: false })
+    Message::Assign(Assign {
+        array: a,
+        coord: c,
+        lo: c,
+        hi: [4, 4, 4],
+        driving_axis: 0,
+        boundaries: Boundaries::Whole,
+    })
 }
 
 fn said_hello(got: &[Message]) -> usize {

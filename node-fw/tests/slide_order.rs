@@ -53,7 +53,7 @@ fn setup() -> Vec<Message> {
             lo: [0; 3],
             hi: [4, 8, 8],
             driving_axis: 0,
-            staggered: false,
+            boundaries: Boundaries::Whole,
         }),
         Message::SceneEnd(SceneEnd { spheres: 0, lights: 0 }),
         Message::RenderStart(common::render_start(balance)),

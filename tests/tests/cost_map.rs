@@ -26,9 +26,13 @@ fn the_cost_map_accounts_for_each_nodes_busy_time() {
     let mut staggered = even.clone();
     // Rows cut apart, so rays crossing between rows are forwarded.
     staggered.row_cuts = Some((0..16).map(|r| vec![0, 4 + r % 3 * 4, 16, 20 + r % 5, 32]).collect());
+    // Columns cut per slab too, so rays crossing between slabs are forwarded
+    // across the columns and then along the rows.
+    let mut jagged = staggered.clone();
+    jagged.slab_cuts = Some((0..4).map(|s| vec![0, 5 + 2 * s, 16 - s, 22 + s, 32]).collect());
     // Measured within 1.9% per node, staggered or not. (Before the pool shared
     // its spare slots, refusals made forwarding nodes pay up to 26% more.)
-    for p in [even, staggered] {
+    for p in [even, staggered, jagged] {
         let (node_error, total_error) = (0.03, 0.01);
         let r = render_partitioned(&s, &opts, p.clone()).unwrap();
         assert!(r.frame.sums == want.sums, "the partition changed the image");

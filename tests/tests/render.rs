@@ -3,7 +3,7 @@
 
 use host_tool::compare::compare;
 use host_tool::frame::to_srgb8;
-use host_tool::render::{Initial, Layout, RenderOptions, render_sim};
+use host_tool::render::{Initial, Layout, RenderOptions, render_partitioned, render_sim};
 use host_tool::scene::{Light, Scene, SphereDesc};
 use host_tool::{direct, reference};
 
@@ -217,6 +217,33 @@ fn a_partition_fitted_to_a_preview_keeps_the_image_bit_identical() {
 }
 
 #[test]
+fn columns_cut_per_slab_keep_the_image_bit_identical_sliding_or_not() {
+    let s = scene(0.6, 3);
+    let size = [40, 32];
+    let want = direct::render(&s, size[0], size[1]).unwrap();
+    let array = [3, 4, 3];
+    // Driving axis y: slabs across z, columns along x, each slab its own.
+    let mut p = host_tool::partition::Partition::even(s.grid, array, 1).unwrap();
+    p.slab_cuts = Some(vec![vec![0, 2, 9, s.grid[0]], vec![0, 7, 8, s.grid[0]], vec![0, 4, 12, s.grid[0]]]);
+    p.row_cuts = Some((0..9).map(|r| vec![0, 1 + r, 10, 11, s.grid[1]]).collect());
+    for (initial, slide) in [(Initial::Entry, false), (Initial::Parallel, false), (Initial::Entry, true)] {
+        let mut opts = RenderOptions::new(array);
+        opts.size = size;
+        opts.initial = initial;
+        opts.balance = slide.then_some(link_proto::Balance {
+            interval: 200_000,
+            threshold: 50 << 16,
+            step: 1,
+            policy: link_proto::SlidePolicy::Paper,
+        });
+        let r = render_partitioned(&s, &opts, p.clone()).unwrap_or_else(|e| panic!("{initial:?}: {e}"));
+        assert_eq!(r.frame.rays_created, r.frame.rays_terminated, "{initial:?}");
+        assert!(r.frame.sums == want.sums, "{initial:?}, sliding {slide}: the partition changed the image");
+        assert!(!slide || !r.frame.slides.is_empty(), "no boundary slid");
+    }
+}
+
+#[test]
 fn a_slide_the_receiver_cannot_hold_is_refused_and_reported() {
     // Dense spheres: a node that takes a slab would exceed its sphere capacity.
     let mut s = Scene::random(10, 9, 1.0, [16; 3]).unwrap();
@@ -251,13 +278,20 @@ fn a_slide_the_receiver_cannot_hold_is_refused_and_reported() {
 
 #[test]
 fn a_node_reports_bad_input_the_host_did_not_catch() {
+    use link_proto::Boundaries;
     use link_proto::{Assign, ErrorCode, Message, SceneEnd, SceneHeader, SphereMsg};
     use sim_board::{Board, SimConfig};
     let mut board = Board::new(SimConfig::new([1, 1, 1]));
     let header = SceneHeader { grid: [8; 3], ambient: [0; 3], background: [0; 3], max_depth: 1 };
     board.send(0, Message::SceneBegin(header));
-    let assign =
-        Assign { array: [1; 3], coord: [0; 3], lo: [0; 3], hi: [8; 3], driving_axis: 0, staggered: false };
+    let assign = Assign {
+        array: [1; 3],
+        coord: [0; 3],
+        lo: [0; 3],
+        hi: [8; 3],
+        driving_axis: 0,
+        boundaries: Boundaries::Whole,
+    };
     board.send(0, Message::Assign(assign));
     // Centre inside the grid, but the sphere sticks out of it.
     let sphere = SphereMsg {
