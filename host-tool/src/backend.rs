@@ -44,7 +44,7 @@ pub fn render(
         Backend::Sim => render_sim(scene, opts),
         Backend::Qemu { firmware } => {
             // Check the scene before starting eight emulators.
-            initial_partition(scene, opts)?;
+            initial_partition(scene, opts, sim_board::SimNode::capacity())?;
             let qemu = QemuArray::launch(opts.array, firmware)?;
             let result = render_serial(scene, opts, &qemu.ptys, node_timeout);
             drop(qemu);
@@ -68,15 +68,16 @@ pub fn render_serial(
     ports: &[String],
     node_timeout: Duration,
 ) -> Result<RenderResult, HostError> {
-    let partition = initial_partition(scene, opts)?;
-    let names = (0..partition.len())
+    let names = (0..opts.array.iter().map(|&n| usize::from(n)).product())
         .map(|i| {
-            let c = partition.coord(i);
+            let c = node_fw::wiring::coord_of(i, opts.array);
             format!("node {i} ({},{},{})", c[0], c[1], c[2])
         })
         .collect();
     let mut array = SerialArray::open(ports, names, node_timeout)?;
     array.connect()?;
+    // Fitted to what the boards can hold, known once they have said hello.
+    let partition = initial_partition(scene, opts, array.capacity())?;
     check_frame(scene, opts, &partition, array.capacity())?;
     render_on(&mut array, scene, opts, partition)
 }

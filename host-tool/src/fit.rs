@@ -3,6 +3,7 @@
 //! each row along the driving axis exactly, and every node's cost with rays
 //! routed as the nodes route them.
 
+use link_proto::Boundaries;
 use node_fw::CubeBox;
 use node_fw::link::Port;
 
@@ -20,12 +21,15 @@ impl Partition {
     /// boundary's crossings counted and rays routed as the nodes route them
     /// ([`Self::node_costs`]). Rows are cut along the driving axis exactly
     /// ([`row_cuts`]). From the true cost map this is an oracle; from a
-    /// preview render's, a start the host can afford.
+    /// preview render's, a start the host can afford. Its boundaries line up
+    /// at least as far as `most` allows (the nodes' pools size for the
+    /// forwarding that staggered boundaries bring).
     pub fn fitted(
         grid: [u16; 3],
         array: [u16; 3],
         driving_axis: u8,
         map: &CostMap,
+        most: Boundaries,
     ) -> Result<Self, HostError> {
         if map.grid != grid {
             return Err(input(format!("a cost map of grid {:?} cannot fit grid {grid:?}", map.grid)));
@@ -47,13 +51,16 @@ impl Partition {
             }
             (p, best) = (next, busiest);
         }
-        let whole = p.refine(map);
+        let whole = p.refine(map, most);
+        if most < Boundaries::StaggeredColumns {
+            return Ok(p);
+        }
         // Beyond whole planes: each slab across the first routed axis cuts its
         // own columns, from the whole cuts or from its own cubes' costs.
         let mut best = (whole, p.clone());
         for start in [p.slabs_alike(), p.slabs_on_their_own(&cells)] {
             let mut jagged = start;
-            let s = jagged.refine(map);
+            let s = jagged.refine(map, most);
             if s < best.0 {
                 best = (s, jagged);
             }
@@ -95,8 +102,8 @@ impl Partition {
     /// Moves single planes across the driving axis by a cube (a slab's own
     /// where slabs cut their columns), rows re-cut, while that lowers the
     /// busiest node's cost (ties: the sum of squares); returns the score.
-    fn refine(&mut self, map: &CostMap) -> Score {
-        let mut best = self.cut_rows(map);
+    fn refine(&mut self, map: &CostMap, most: Boundaries) -> Score {
+        let mut best = self.cut_rows(map, most);
         // Each accepted move lowers the score, so this ends; the cap bounds the time.
         for _ in 0..4 * usize::from(map.grid.iter().copied().max().unwrap_or(1)) {
             let mut improved = false;
@@ -104,7 +111,7 @@ impl Partition {
                 for step in [-1, 1] {
                     let mut next = self.clone();
                     if next.move_plane(plane, step) {
-                        let s = next.cut_rows(map);
+                        let s = next.cut_rows(map, most);
                         if s < best {
                             (*self, best) = (next, s);
                             improved = true;
@@ -151,9 +158,9 @@ impl Partition {
     }
 
     /// Cuts the rows along the driving axis, each on its own (staggered, as
-    /// sliding leaves them) or all alike (no ray forwarded), whichever leaves
-    /// the busiest node paying less; returns that score.
-    fn cut_rows(&mut self, map: &CostMap) -> Score {
+    /// sliding leaves them, if `most` allows) or all alike (no ray forwarded),
+    /// whichever leaves the busiest node paying less; returns that score.
+    fn cut_rows(&mut self, map: &CostMap, most: Boundaries) -> Score {
         let d = usize::from(self.driving_axis);
         let parts = usize::from(self.array[d]);
         let rows: Vec<RowProfile> = (0..self.len() / parts).map(|row| self.row_profile(map, row)).collect();
@@ -161,7 +168,12 @@ impl Partition {
         alike.cuts[d] = row_cuts(&rows, parts);
         let own = rows.iter().map(|r| row_cuts(std::slice::from_ref(r), parts)).collect();
         let staggered = Self { row_cuts: Some(own), ..self.clone() };
-        let (a, s) = (score(&alike.node_costs(map)), score(&staggered.node_costs(map)));
+        let a = score(&alike.node_costs(map));
+        if most == Boundaries::Whole {
+            *self = alike;
+            return a;
+        }
+        let s = score(&staggered.node_costs(map));
         if s < a {
             *self = staggered;
             s
@@ -437,6 +449,7 @@ mod tests {
     use super::{RowProfile, bottleneck_cuts, row_cuts};
     use crate::cost_map::CostMap;
     use crate::partition::Partition;
+    use link_proto::Boundaries;
     use proptest::prelude::*;
 
     /// The largest per-component sum of any part.
@@ -497,7 +510,7 @@ mod tests {
         }
         let map = CostMap { compute: cost, ..CostMap::new(grid) };
         let even = Partition::even(grid, [4; 3], 2).unwrap();
-        let fitted = Partition::fitted(grid, [4; 3], 2, &map).unwrap();
+        let fitted = Partition::fitted(grid, [4; 3], 2, &map, Boundaries::StaggeredColumns).unwrap();
         let rows = |p: &Partition| p.row_loads(&map);
         let (e, f) = (rows(&even), rows(&fitted));
         let mean = e.iter().sum::<u64>() as f64 / e.len() as f64;
@@ -530,7 +543,7 @@ mod tests {
         }
         let max_node = |p: &Partition| (0..p.len()).map(|id| map.node_cost(&p.bounds(id))).max().unwrap();
         let even = Partition::even(grid, [2, 2, 4], 2).unwrap();
-        let fitted = Partition::fitted(grid, [2, 2, 4], 2, &map).unwrap();
+        let fitted = Partition::fitted(grid, [2, 2, 4], 2, &map, Boundaries::StaggeredColumns).unwrap();
         // A row is 64 cubes across: 640 a layer, 64 a plane's side, 64 000
         // at the heavy planes (96 000 at z = 8, crossed both ways).
         assert_eq!(max_node(&even), 4 * 640 + 64_000 + 96_000);
@@ -555,7 +568,7 @@ mod tests {
             }
         }
         let map = CostMap { compute: cost, ..CostMap::new(grid) };
-        let fitted = Partition::fitted(grid, [2, 2, 2], 2, &map).unwrap();
+        let fitted = Partition::fitted(grid, [2, 2, 2], 2, &map, Boundaries::StaggeredColumns).unwrap();
         let max = |p: &Partition| *p.node_costs(&map).iter().max().unwrap();
         // The best whole planes, by trying every pair of cuts across x and y.
         let mut whole = u64::MAX;
@@ -563,7 +576,7 @@ mod tests {
             for y in 1..16 {
                 let mut p = Partition::even(grid, [2, 2, 2], 2).unwrap();
                 (p.cuts[0][1], p.cuts[1][1]) = (x, y);
-                whole = whole.min(p.cut_rows(&map).0);
+                whole = whole.min(p.cut_rows(&map, Boundaries::StaggeredRows).0);
             }
         }
         let slabs = fitted.slab_cuts.as_ref().expect("columns cut per slab");

@@ -199,7 +199,7 @@ fn preview(
     let mut opts = options(scene, side, cfg, initial, Boundaries::StaggeredRows);
     opts.layout = Layout::Preview;
     opts.driving_axis = Some(crate::partition::view_axis(scene));
-    crate::render::initial_partition(scene, &opts)
+    crate::render::initial_partition(scene, &opts, sim_board::SimNode::capacity())
 }
 
 /// Boundaries perpendicular to the driving axis (one per adjacent node pair along it).
@@ -349,7 +349,8 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                 // messages included, initial rays created where they enter.
                 crate::direct::add_initial_rays(&mut map, &scene, cfg.size, &model, true)?;
                 let view_ax = crate::partition::view_axis(&scene);
-                let oracle_p = Partition::fitted(scene.grid, [n; 3], view_ax, &map)?;
+                let oracle_p =
+                    Partition::fitted(scene.grid, [n; 3], view_ax, &map, Boundaries::StaggeredColumns)?;
                 let oracle = run_on(&scene, [n; 3], cfg, Initial::Entry, Policy::Static, st, Some(oracle_p))?;
                 let strict = (compute / s_nodes).max(heaviest);
                 // The bound, per run: max(W/S, heaviest cube) with W the

@@ -7,7 +7,7 @@
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
-use link_proto::{Balance, Capacity, ErrorCode, InitialRays, Message, RenderStart, SceneEnd};
+use link_proto::{Balance, Boundaries, Capacity, ErrorCode, InitialRays, Message, RenderStart, SceneEnd};
 use node_fw::Port;
 use node_fw::pool::class_bound;
 use node_fw::reliable::ChannelStats;
@@ -182,8 +182,12 @@ impl Array for Board {
 }
 
 /// The starting partition of `scene` over `opts.array` along the chosen
-/// driving axis, cut as `opts.layout` says.
-pub fn initial_partition(scene: &Scene, opts: &RenderOptions) -> Result<Partition, HostError> {
+/// driving axis, cut as `opts.layout` says, for nodes of `capacity`.
+pub fn initial_partition(
+    scene: &Scene,
+    opts: &RenderOptions,
+    capacity: Capacity,
+) -> Result<Partition, HostError> {
     let axis = match opts.driving_axis {
         Some(a) if a > 2 => return Err(input(format!("driving axis {a} must be 0, 1 or 2"))),
         Some(a) => a,
@@ -200,14 +204,19 @@ pub fn initial_partition(scene: &Scene, opts: &RenderOptions) -> Result<Partitio
             let creation = opts.initial == Initial::Entry;
             let costs = crate::direct::cost_map(scene, w, h, &opts.sim.cost, creation)
                 .map_err(|e| e.context("the preview for --layout preview"))?;
-            Partition::fitted(scene.grid, opts.array, axis, &costs)
+            // Staggered no further than the nodes' pools can route at this depth.
+            let most = [Boundaries::StaggeredColumns, Boundaries::StaggeredRows]
+                .into_iter()
+                .find(|&b| slots_needed(scene, opts, axis, b) <= u32::from(capacity.rays))
+                .unwrap_or(Boundaries::Whole);
+            Partition::fitted(scene.grid, opts.array, axis, &costs, most)
         }
     }
 }
 
 /// Renders `scene` on the in-memory board with its starting partition.
 pub fn render_sim(scene: &Scene, opts: &RenderOptions) -> Result<RenderResult, HostError> {
-    render_partitioned(scene, opts, initial_partition(scene, opts)?)
+    render_partitioned(scene, opts, initial_partition(scene, opts, SimNode::capacity())?)
 }
 
 /// Renders `scene` on the in-memory board with a given partition.
@@ -234,10 +243,8 @@ pub fn check_frame(
         return Err(HostError::ZeroSize(format!("image size {w}x{h} must be at least 1x1")));
     }
     partition.check_capacity(scene, capacity)?;
-    let boundaries = partition.boundaries_when(opts.balance.is_some());
-    let top = class_bound(opts.array, scene.max_depth, usize::from(partition.driving_axis), boundaries);
     let shared = opts.shared_slots.map_or(0, u32::from);
-    let needed = (top + 1) * u32::from(opts.level_depth) + shared;
+    let needed = slots_needed(scene, opts, partition.driving_axis, partition.boundaries());
     if opts.level_depth == 0 || needed > u32::from(capacity.rays) {
         return Err(HostError::Capacity(format!(
             "queue depth {} and {shared} shared slots need {needed} ray slots per node for this array \
@@ -246,6 +253,16 @@ pub fn check_frame(
         )));
     }
     Ok(())
+}
+
+/// Ray slots per node a frame of `scene` needs with boundaries lined up as
+/// `boundaries` across driving axis `axis` (sliding staggers the rows
+/// whatever the start).
+fn slots_needed(scene: &Scene, opts: &RenderOptions, axis: u8, boundaries: Boundaries) -> u32 {
+    let lined_up =
+        if opts.balance.is_some() { boundaries.max(Boundaries::StaggeredRows) } else { boundaries };
+    let top = class_bound(opts.array, scene.max_depth, usize::from(axis), lined_up);
+    (top + 1) * u32::from(opts.level_depth) + opts.shared_slots.map_or(0, u32::from)
 }
 
 /// Renders one frame on `array` (already checked with [`check_frame`]).

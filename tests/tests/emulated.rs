@@ -75,10 +75,10 @@ fn qemu_array_matches_the_in_memory_board() {
 
 /// One host session on running boards: connect, check, render.
 fn session(ptys: &[String], s: &Scene, opts: &RenderOptions) -> host_tool::render::RenderResult {
-    let partition = initial_partition(s, opts).expect("partition");
     let names = (0..ptys.len()).map(|i| format!("node {i}")).collect();
     let mut array = SerialArray::open(ptys, names, Duration::from_secs(30)).expect("ptys open");
     array.connect().expect("every node says hello");
+    let partition = initial_partition(s, opts, array.capacity()).expect("partition");
     check_frame(s, opts, &partition, array.capacity()).expect("fits");
     render_on(&mut array, s, opts, partition).unwrap_or_else(|e| panic!("render: {e}"))
 }
@@ -110,12 +110,12 @@ fn a_frozen_node_is_named_after_the_time_out() {
     let s = scene();
     let opts = options(None);
     let qemu = QemuArray::launch(opts.array, &firmware).expect("emulators start");
-    let partition = initial_partition(&s, &opts).expect("partition");
     let names = (0..8).map(|i| format!("node {i}")).collect();
     // Long enough that eight emulators starving on two cores are not taken
     // for dead; far below the test's bound.
     let mut array = SerialArray::open(&qemu.ptys, names, Duration::from_secs(8)).expect("ptys open");
     array.connect().expect("every node says hello");
+    let partition = initial_partition(&s, &opts, array.capacity()).expect("partition");
     check_frame(&s, &opts, &partition, array.capacity()).expect("fits");
     // Freeze node 5: its pty stays open, but it never answers again.
     let pid = qemu.pid(5).expect("node 5 runs").to_string();

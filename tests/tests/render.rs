@@ -3,7 +3,9 @@
 
 use host_tool::compare::compare;
 use host_tool::frame::to_srgb8;
-use host_tool::render::{Initial, Layout, RenderOptions, render_partitioned, render_sim};
+use host_tool::render::{
+    Initial, Layout, RenderOptions, check_frame, initial_partition, render_partitioned, render_sim,
+};
 use host_tool::scene::{Light, Scene, SphereDesc};
 use host_tool::{direct, reference};
 
@@ -213,6 +215,30 @@ fn a_partition_fitted_to_a_preview_keeps_the_image_bit_identical() {
         assert!(r.partition != even, "{array:?}: not fitted");
         assert_eq!(r.frame.rays_created, r.frame.rays_terminated, "{array:?}");
         assert!(r.frame.sums == want.sums, "{array:?}: the fitted partition changed the image");
+    }
+}
+
+#[test]
+fn a_preview_fit_staggers_no_further_than_the_pools_can_route() {
+    use link_proto::{Boundaries, Capacity};
+    let s = scene(0.6, 3);
+    let mut opts = RenderOptions::new([4, 4, 4]);
+    opts.size = [40, 32];
+    opts.layout = Layout::Preview;
+    let want = direct::render(&s, opts.size[0], opts.size[1]).unwrap();
+    let sim = sim_board::SimNode::capacity();
+    let free = initial_partition(&s, &opts, sim).unwrap();
+    assert_eq!(free.boundaries(), Boundaries::StaggeredColumns, "the fit this test constrains");
+    let axis = usize::from(free.driving_axis);
+    for most in [Boundaries::Whole, Boundaries::StaggeredRows] {
+        // Just the slots a pool needs for `most`: one more kind would not fit.
+        let levels = node_fw::pool::class_bound(opts.array, s.max_depth, axis, most) + 1;
+        let capacity = Capacity { rays: (levels * u32::from(opts.level_depth)) as u16, ..sim };
+        let p = initial_partition(&s, &opts, capacity).unwrap();
+        assert!(p.boundaries() <= most, "{:?} from a pool for {most:?}", p.boundaries());
+        check_frame(&s, &opts, &p, capacity).unwrap_or_else(|e| panic!("{most:?}: {e}"));
+        let r = render_partitioned(&s, &opts, p).unwrap();
+        assert!(r.frame.sums == want.sums, "{most:?}: the partition changed the image");
     }
 }
 
