@@ -131,7 +131,7 @@ enum InitialMode {
 enum LayoutMode {
     /// Even boxes (the paper's start).
     Even,
-    /// Fitted to the cost of a quarter-resolution preview the host renders
+    /// Fitted to the cost of a half-resolution preview the host renders
     /// first (beyond the paper).
     Preview,
 }

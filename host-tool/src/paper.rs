@@ -188,7 +188,7 @@ fn run_on(
     })
 }
 
-/// The partition fitted to a quarter-resolution preview (`--layout preview`),
+/// The partition fitted to a half-resolution preview (`--layout preview`),
 /// along the view axis, for rays started as `initial` says.
 fn preview(
     scene: &Scene,

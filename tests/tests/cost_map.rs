@@ -66,7 +66,8 @@ fn a_preview_fitted_with_messages_lowers_the_busiest_node() {
     let even = busiest(&opts);
     opts.layout = Layout::Preview;
     let fitted = busiest(&opts);
-    // Measured: 1.16e7 even, 9.89e6 fitted to a 16 x 16 preview (each node
-    // also takes 2.1e6 for the broadcast scene, whatever the partition).
-    assert!(fitted < even * 9 / 10, "busiest node: even {even}, preview {fitted}");
+    // Measured: 1.16e7 even, 7.99e6 fitted to a 32 x 32 preview (9.89e6 to a
+    // 16 x 16 one with whole planes across both non-driving axes). Each node
+    // also takes 2.1e6 for the broadcast scene, whatever the partition.
+    assert!(fitted < even * 3 / 4, "busiest node: even {even}, preview {fitted}");
 }
