@@ -1,7 +1,7 @@
 //! Fitting a partition to a cost map ([`crate::cost_map`]): the planes
 //! across the driving axis by rectilinear partitioning and a local search,
-//! each row along the driving axis exactly, and every node's cost with rays
-//! routed as the nodes route them.
+//! then each slab's own columns, each row along the driving axis exactly,
+//! and every node's cost with rays routed as the nodes route them.
 
 use link_proto::Boundaries;
 use node_fw::CubeBox;
@@ -14,13 +14,15 @@ use crate::partition::Partition;
 impl Partition {
     /// A partition fitted to a cost map: the one whose busiest node pays
     /// least, as far as a local search finds it. The planes across the
-    /// driving axis stay whole (routing needs nothing but a node's own box):
-    /// first placed by rectilinear partitioning after Nicol (1994), each axis
-    /// in turn cut to minimise the busiest row's cubes given the other's cuts;
-    /// then moved a cube at a time while that lowers the busiest node, every
-    /// boundary's crossings counted and rays routed as the nodes route them
-    /// ([`Self::node_costs`]). Rows are cut along the driving axis exactly
-    /// ([`row_cuts`]). From the true cost map this is an oracle; from a
+    /// driving axis are first placed whole by rectilinear partitioning after
+    /// Nicol (1994), each axis in turn cut to minimise the busiest row's cubes
+    /// given the other's cuts; then moved a cube at a time while that lowers
+    /// the busiest node, every boundary's crossings counted and rays routed as
+    /// the nodes route them ([`Self::node_costs`]). Then each slab across the
+    /// first routed axis may cut its own columns, searched the same way; the
+    /// nodes' dimension-order routing still needs nothing but their own box.
+    /// Rows are cut along the driving axis exactly ([`row_cuts`]). From the
+    /// true cost map this is an oracle; from a
     /// preview render's, a start the host can afford. Its boundaries line up
     /// at least as far as `most` allows (the nodes' pools size for the
     /// forwarding that staggered boundaries bring).
