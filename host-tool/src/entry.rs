@@ -237,38 +237,35 @@ mod tests {
     /// rays created by the node whose box they enter.
     fn front_tiles_hold(scene: &Scene, basis: &PixelBasis, p: &Partition, size: [u16; 2]) {
         let array = p.array;
-        {
-            let t = entry_tiles(basis, scene.grid, p, 2, size);
-            assert!(covers_once(&t, size), "{array:?}: {t:?}");
-            // Only the front layer (z = 0, the eye is at negative z) creates rays.
-            for (id, tile) in t.iter().enumerate() {
-                if p.coord(id)[2] != 0 {
-                    assert_eq!(*tile, [0; 4], "{array:?}: node {id}");
-                }
+        let t = entry_tiles(basis, scene.grid, p, 2, size);
+        assert!(covers_once(&t, size), "{array:?}: {t:?}");
+        // Only the front layer (z = 0, the eye is at negative z) creates rays.
+        for (id, tile) in t.iter().enumerate() {
+            if p.coord(id)[2] != 0 {
+                assert_eq!(*tile, [0; 4], "{array:?}: node {id}");
             }
-            // Independent check: most rays that enter the grid are created by
-            // the node whose box they enter.
-            let g = scene.grid.map(f64::from);
-            let (mut entering, mut at_home) = (0, 0);
-            for (id, tile) in t.iter().enumerate() {
-                for y in tile[1]..tile[3] {
-                    for x in tile[0]..tile[2] {
-                        let d = std::array::from_fn(|a| {
-                            basis.corner[a] + f64::from(x) * basis.du[a] + f64::from(y) * basis.dv[a]
-                        });
-                        if let Some(e) = entry_point(basis.eye, d, g) {
-                            let b = p.bounds(id);
-                            let inside =
-                                (0..3).all(|a| e[a] >= f64::from(b.lo[a]) && e[a] < f64::from(b.hi[a]));
-                            entering += 1;
-                            at_home += usize::from(inside);
-                        }
+        }
+        // Independent check: most rays that enter the grid are created by
+        // the node whose box they enter.
+        let g = scene.grid.map(f64::from);
+        let (mut entering, mut at_home) = (0, 0);
+        for (id, tile) in t.iter().enumerate() {
+            for y in tile[1]..tile[3] {
+                for x in tile[0]..tile[2] {
+                    let d = std::array::from_fn(|a| {
+                        basis.corner[a] + f64::from(x) * basis.du[a] + f64::from(y) * basis.dv[a]
+                    });
+                    if let Some(e) = entry_point(basis.eye, d, g) {
+                        let b = p.bounds(id);
+                        let inside = (0..3).all(|a| e[a] >= f64::from(b.lo[a]) && e[a] < f64::from(b.hi[a]));
+                        entering += 1;
+                        at_home += usize::from(inside);
                     }
                 }
             }
-            assert!(entering > 0);
-            assert!(at_home * 100 >= entering * 95, "{array:?}: {at_home} of {entering} at home");
         }
+        assert!(entering > 0);
+        assert!(at_home * 100 >= entering * 95, "{array:?}: {at_home} of {entering} at home");
     }
 
     #[test]

@@ -22,10 +22,10 @@ impl Partition {
     /// first routed axis may cut its own columns, searched the same way; the
     /// nodes' dimension-order routing still needs nothing but their own box.
     /// Rows are cut along the driving axis exactly ([`row_cuts`]). From the
-    /// true cost map this is an oracle; from a
-    /// preview render's, a start the host can afford. Its boundaries line up
-    /// at least as far as `most` allows (the nodes' pools size for the
-    /// forwarding that staggered boundaries bring).
+    /// true cost map this is an oracle; from a preview render's, a start the
+    /// host can afford. Its boundaries line up at least as far as `most`
+    /// allows (the nodes' pools size for the forwarding that staggered
+    /// boundaries bring).
     pub fn fitted(
         grid: [u16; 3],
         array: [u16; 3],
