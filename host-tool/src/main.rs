@@ -79,6 +79,10 @@ struct PaperArgs {
     /// A reduced run (a minute or two) for CI.
     #[arg(long)]
     quick: bool,
+    /// Seed of the random scenes (1986 by default, the paper's year): rerun
+    /// with others to see how far the results depend on one scene.
+    #[arg(long, value_name = "N", default_value_t = 1986)]
+    seed: u64,
 }
 
 #[derive(Args)]
@@ -282,6 +286,7 @@ fn main() -> ExitCode {
             } else {
                 host_tool::paper::PaperConfig::full()
             };
+            let cfg = host_tool::paper::PaperConfig { seed: args.seed, ..cfg };
             host_tool::paper::bench_paper(&cfg, &args.out).map(|report| print!("{report}"))
         }
     };

@@ -225,7 +225,7 @@ pub fn loglog_slope(points: &[(f64, f64)]) -> f64 {
 pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
     std::fs::create_dir_all(out)
         .map_err(|e| HostError::Io(format!("cannot create {}: {e}", out.display())))?;
-    let mut report = String::new();
+    let mut report = format!("Random scenes from seed {}.\n", cfg.seed);
 
     // Figs. 7 and 8.
     let mut fig7 = String::from("S,mode,spheres,makespan,imbalance\n");
