@@ -197,20 +197,24 @@ impl Partition {
         for (i, &o) in owner.iter().enumerate() {
             cost[o] += map.cell(i);
         }
-        let [nx, ny, _] = map.grid.map(usize::from);
-        let stride = [1, nx, nx * ny];
-        for a in 0..3 {
-            for (i, &lo) in owner.iter().enumerate() {
-                let cell = [i % nx, i / nx % ny, i / (nx * ny)];
-                let Some(&hi) = owner.get(i + stride[a]).filter(|_| cell[a] + 1 < usize::from(map.grid[a]))
-                else {
-                    continue;
-                };
-                if lo != hi {
-                    let mut above = cell.map(|c| c as i32);
-                    above[a] += 1;
-                    self.charge_route(&boxes, &mut cost, lo, above, map.up[a][i]);
-                    self.charge_route(&boxes, &mut cost, hi, cell.map(|c| c as i32), map.down[a][i]);
+        let n = map.grid.map(usize::from);
+        let stride = [1, n[0], n[0] * n[1]];
+        let mut i = 0;
+        for z in 0..n[2] {
+            for y in 0..n[1] {
+                for x in 0..n[0] {
+                    let cell = [x, y, z];
+                    let lo = owner[i];
+                    for a in (0..3).filter(|&a| cell[a] + 1 < n[a]) {
+                        let hi = owner[i + stride[a]];
+                        if lo != hi {
+                            let mut above = cell.map(|c| c as i32);
+                            above[a] += 1;
+                            self.charge_route(&boxes, &mut cost, lo, above, map.up[a][i]);
+                            self.charge_route(&boxes, &mut cost, hi, cell.map(|c| c as i32), map.down[a][i]);
+                        }
+                    }
+                    i += 1;
                 }
             }
         }
@@ -222,15 +226,15 @@ impl Partition {
     /// ([`node_fw::route::toward`], the nodes' own rule).
     fn charge_route(&self, boxes: &[CubeBox], cost: &mut [u64], from: usize, cell: [i32; 3], per_side: u64) {
         let d = usize::from(self.driving_axis);
+        let [ax, ay, _] = self.array.map(usize::from);
+        let stride = [1, ax, ax * ay];
         let mut at = from;
-        // Every hop moves toward the owner, so a route is shorter than the array.
+        // Every hop moves toward the owner, so a route is shorter than the array;
+        // and `cell` is in the grid, so there is a neighbour that way.
         for _ in 0..self.len() {
             let Some(port) = node_fw::route::toward(&boxes[at], cell, d) else { break };
-            let mut next = self.coord(at);
             let axis = port.axis().unwrap_or(0);
-            next[axis] =
-                if port == Port::toward(axis, true) { next[axis] + 1 } else { next[axis].wrapping_sub(1) };
-            let Some(id) = node_fw::wiring::index_of(next, self.array).map(usize::from) else { break };
+            let id = if port == Port::toward(axis, true) { at + stride[axis] } else { at - stride[axis] };
             cost[at] += per_side;
             cost[id] += per_side;
             at = id;
@@ -337,11 +341,19 @@ pub struct RowProfile {
 }
 
 impl RowProfile {
-    /// What the part of layers `i..j` pays.
-    fn part(&self, i: usize, j: usize) -> u64 {
-        let n = self.layers.len();
-        let plane = |k: usize| if k == 0 || k == n { 0 } else { self.planes.get(k).copied().unwrap_or(0) };
-        self.layers[i..j].iter().sum::<u64>() + plane(i) + plane(j)
+    /// What each side of a cut at plane `k` pays (nothing at the row's ends).
+    fn plane(&self, k: usize) -> u64 {
+        if k == 0 || k == self.layers.len() { 0 } else { self.planes.get(k).copied().unwrap_or(0) }
+    }
+
+    /// The layers' running sums: `[0, l_0, l_0 + l_1, ...]`.
+    fn prefix(&self) -> Vec<u64> {
+        std::iter::once(0)
+            .chain(self.layers.iter().scan(0u64, |sum, &l| {
+                *sum += l;
+                Some(*sum)
+            }))
+            .collect()
     }
 }
 
@@ -351,7 +363,14 @@ impl RowProfile {
 pub fn row_cuts(rows: &[RowProfile], parts: usize) -> Vec<u16> {
     let n = rows.first().map_or(0, |r| r.layers.len());
     let parts = parts.clamp(1, n.max(1));
-    let cost = |i: usize, j: usize| rows.iter().map(|r| r.part(i, j)).max().unwrap_or(0);
+    // cost[i][j]: what the part of layers i..j pays in the busiest row, by
+    // running sums, tabled once (the search asks for each span many times).
+    let sums: Vec<Vec<u64>> = rows.iter().map(RowProfile::prefix).collect();
+    let part = |i: usize, j: usize| {
+        rows.iter().zip(&sums).map(|(r, s)| s[j] - s[i] + r.plane(i) + r.plane(j)).max().unwrap_or(0)
+    };
+    let cost: Vec<Vec<u64>> =
+        (0..=n).map(|i| (0..=n).map(|j| if i < j { part(i, j) } else { 0 }).collect()).collect();
     // best[p][j]: the least busiest part of layers 0..j in p parts; from[p][j]: its last cut.
     let mut best = vec![vec![u64::MAX; n + 1]; parts + 1];
     let mut from = vec![vec![0usize; n + 1]; parts + 1];
@@ -362,7 +381,7 @@ pub fn row_cuts(rows: &[RowProfile], parts: usize) -> Vec<u16> {
                 if best[p - 1][i] == u64::MAX {
                     continue;
                 }
-                let v = best[p - 1][i].max(cost(i, j));
+                let v = best[p - 1][i].max(cost[i][j]);
                 if v < best[p][j] {
                     (best[p][j], from[p][j]) = (v, i);
                 }
