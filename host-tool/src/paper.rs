@@ -145,10 +145,8 @@ fn run_on(
     partition: Option<crate::partition::Partition>,
 ) -> Result<Run, HostError> {
     let sliding = !matches!(policy, Policy::Static);
-    let lined_up =
-        partition.as_ref().map_or(if sliding { Boundaries::StaggeredRows } else { Boundaries::Whole }, |p| {
-            p.boundaries_when(sliding)
-        });
+    let start = partition.as_ref().map_or(Boundaries::Whole, Partition::boundaries);
+    let lined_up = start.when_sliding(sliding);
     let mut opts = options(scene, side, cfg, initial, lined_up);
     // About 64 load comparisons over a frame, threshold 3 (loads are running / waiting).
     let interval = (static_makespan / 64).max(10_000);

@@ -134,12 +134,6 @@ impl Partition {
         }
     }
 
-    /// How far the boundaries line up during a render, sliding or not
-    /// (sliding staggers the rows).
-    pub fn boundaries_when(&self, sliding: bool) -> Boundaries {
-        if sliding { self.boundaries().max(Boundaries::StaggeredRows) } else { self.boundaries() }
-    }
-
     /// The node whose box holds `p` (clamped into the grid first): found in
     /// routing order, each axis's cuts known once the earlier ones are.
     pub fn owner_of(&self, p: [f64; 3], grid: [u16; 3]) -> usize {

@@ -259,12 +259,10 @@ pub fn check_frame(
     Ok(())
 }
 
-/// Ray slots per node a frame of `scene` needs with boundaries lined up as
-/// `boundaries` across driving axis `axis` (sliding staggers the rows
-/// whatever the start).
+/// Ray slots per node a frame of `scene` needs from a start whose boundaries
+/// line up as `boundaries` across driving axis `axis`.
 fn slots_needed(scene: &Scene, opts: &RenderOptions, axis: u8, boundaries: Boundaries) -> u32 {
-    let lined_up =
-        if opts.balance.is_some() { boundaries.max(Boundaries::StaggeredRows) } else { boundaries };
+    let lined_up = boundaries.when_sliding(opts.balance.is_some());
     let top = class_bound(opts.array, scene.max_depth, usize::from(axis), lined_up);
     (top + 1) * u32::from(opts.level_depth) + opts.shared_slots.map_or(0, u32::from)
 }

@@ -250,6 +250,14 @@ pub enum Boundaries {
     StaggeredColumns,
 }
 
+impl Boundaries {
+    /// How far they line up during a render: sliding staggers the rows
+    /// whatever the start.
+    pub fn when_sliding(self, sliding: bool) -> Self {
+        if sliding { self.max(Self::StaggeredRows) } else { self }
+    }
+}
+
 /// How initial rays are created.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
 pub enum InitialRays {

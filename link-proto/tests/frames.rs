@@ -327,3 +327,17 @@ fn a_trailer_that_is_not_exactly_one_acknowledgement_is_refused() {
         assert_eq!(got, vec![Err(DecodeError::Body)], "trailer {trailer:02x?}");
     }
 }
+
+#[test]
+fn sliding_staggers_the_rows_of_any_start_and_keeps_staggered_columns() {
+    use Boundaries::*;
+    let cases = [
+        (Whole, Whole, StaggeredRows),
+        (StaggeredRows, StaggeredRows, StaggeredRows),
+        (StaggeredColumns, StaggeredColumns, StaggeredColumns),
+    ];
+    for (start, still, sliding) in cases {
+        assert_eq!(start.when_sliding(false), still, "{start:?}");
+        assert_eq!(start.when_sliding(true), sliding, "{start:?}");
+    }
+}

@@ -19,9 +19,9 @@
 
 use heapless::{Deque, Vec};
 use link_proto::{
-    Assign, Balance, Boundaries, Capacity, ErrorCode, ErrorReport, Hello, HitMsg, LightMsg, LoadReport,
-    Message, PROTOCOL_VERSION, RayKind, RayMsg, RayReply, RenderStart, Retire, SceneHeader, SlideDone,
-    SlideOffer, SlidePolicy, SlideRefusal, SlideReply, SphereMsg,
+    Assign, Balance, Capacity, ErrorCode, ErrorReport, Hello, HitMsg, LightMsg, LoadReport, Message,
+    PROTOCOL_VERSION, RayKind, RayMsg, RayReply, RenderStart, Retire, SceneHeader, SlideDone, SlideOffer,
+    SlidePolicy, SlideRefusal, SlideReply, SphereMsg,
 };
 
 use crate::camera::{primary_line, primary_ray};
@@ -419,12 +419,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         let Some(assign) = self.assign.filter(|_| self.phase == Phase::Loaded) else {
             return self.fail(ErrorCode::Unexpected, 0, 0);
         };
-        // Sliding staggers the rows whatever the start.
-        let boundaries = if r.balance.is_some() {
-            assign.boundaries.max(Boundaries::StaggeredRows)
-        } else {
-            assign.boundaries
-        };
+        let boundaries = assign.boundaries.when_sliding(r.balance.is_some());
         let top =
             class_bound(assign.array, self.header.max_depth, usize::from(assign.driving_axis), boundaries);
         if let Err(e) = self.pool.configure(top, r.level_depth, r.shared_slots) {

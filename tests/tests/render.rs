@@ -10,6 +10,12 @@ use host_tool::scene::{Light, Scene, SphereDesc};
 use host_tool::{direct, reference};
 
 /// A small scene with mirrors, two lights and spheres across node boundaries.
+/// The paper's sliding rule, one cube a step, at `interval` cycles and
+/// `threshold` (16.16).
+fn paper_slide(interval: u64, threshold: u32) -> link_proto::Balance {
+    link_proto::Balance { interval, threshold, step: 1, policy: link_proto::SlidePolicy::Paper }
+}
+
 fn scene(reflect: f64, max_depth: u8) -> Scene {
     let mut s = Scene::random(150, 42, 1.0, [16; 3]).unwrap();
     for (i, sp) in s.spheres.iter_mut().enumerate() {
@@ -177,12 +183,7 @@ fn sliding_boundaries_keep_the_image_bit_identical() {
         opts.initial = initial;
         opts.driving_axis = axis;
         // Short intervals and a high threshold: boundaries move often.
-        opts.balance = Some(link_proto::Balance {
-            interval: 1_000_000,
-            threshold: 50 << 16,
-            step: 1,
-            policy: link_proto::SlidePolicy::Paper,
-        });
+        opts.balance = Some(paper_slide(1_000_000, 50 << 16));
         let r = render_sim(&s, &opts).unwrap_or_else(|e| panic!("{array:?}: {e}"));
         assert_eq!(r.frame.rays_created, r.frame.rays_terminated, "{array:?}");
         assert!(r.frame.slides.len() > 5, "{array:?}: only {} slides", r.frame.slides.len());
@@ -204,12 +205,7 @@ fn a_partition_fitted_to_a_preview_keeps_the_image_bit_identical() {
         opts.size = size;
         opts.initial = initial;
         opts.layout = Layout::Preview;
-        opts.balance = slide.then_some(link_proto::Balance {
-            interval: 1_000_000,
-            threshold: 50 << 16,
-            step: 1,
-            policy: link_proto::SlidePolicy::Paper,
-        });
+        opts.balance = slide.then_some(paper_slide(1_000_000, 50 << 16));
         let r = render_sim(&s, &opts).unwrap_or_else(|e| panic!("{array:?}: {e}"));
         let even = host_tool::partition::Partition::even(s.grid, array, r.partition.driving_axis).unwrap();
         assert!(r.partition != even, "{array:?}: not fitted");
@@ -256,12 +252,7 @@ fn columns_cut_per_slab_keep_the_image_bit_identical_sliding_or_not() {
         let mut opts = RenderOptions::new(array);
         opts.size = size;
         opts.initial = initial;
-        opts.balance = slide.then_some(link_proto::Balance {
-            interval: 200_000,
-            threshold: 50 << 16,
-            step: 1,
-            policy: link_proto::SlidePolicy::Paper,
-        });
+        opts.balance = slide.then_some(paper_slide(200_000, 50 << 16));
         let r = render_partitioned(&s, &opts, p.clone()).unwrap_or_else(|e| panic!("{initial:?}: {e}"));
         assert_eq!(r.frame.rays_created, r.frame.rays_terminated, "{initial:?}");
         assert!(r.frame.sums == want.sums, "{initial:?}, sliding {slide}: the partition changed the image");
@@ -289,12 +280,7 @@ fn a_slide_the_receiver_cannot_hold_is_refused_and_reported() {
     // no such slide is offered, so the test keeps the paper's mode.
     opts.initial = Initial::Parallel;
     opts.driving_axis = Some(0);
-    opts.balance = Some(link_proto::Balance {
-        interval: 150_000,
-        threshold: 1000 << 16,
-        step: 1,
-        policy: link_proto::SlidePolicy::Paper,
-    });
+    opts.balance = Some(paper_slide(150_000, 1000 << 16));
     let r = render_sim(&s, &opts).expect("a refused slide is not a failure");
     assert!(!r.frame.refused_slides.is_empty(), "capacity refusals were reported");
     assert_eq!(r.frame.rays_created, r.frame.rays_terminated);
@@ -347,12 +333,7 @@ fn lossy_links_keep_the_image_bit_identical() {
         opts.sim.faults = Some(faults(seed));
         if balance {
             opts.driving_axis = Some(2);
-            opts.balance = Some(link_proto::Balance {
-                interval: 1_000_000,
-                threshold: 3 << 16,
-                step: 1,
-                policy: link_proto::SlidePolicy::Paper,
-            });
+            opts.balance = Some(paper_slide(1_000_000, 3 << 16));
         }
         let r = render_sim(&s, &opts).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
         assert_eq!(r.frame.rays_created, r.frame.rays_terminated, "seed {seed}: rays lost");
