@@ -236,8 +236,10 @@ struct RenderArgs {
     /// Who creates the initial rays.
     #[arg(long, value_enum, default_value = "entry")]
     initial_rays: InitialMode,
-    /// Ray pool slots per class level in each node (back-pressure depth).
-    #[arg(long, value_name = "N", default_value_t = 4)]
+    /// Ray pool slots kept for each class level in each node; the rest are
+    /// shared. One is enough for deadlock freedom, and a deeper reserve
+    /// starves the shared slots on large arrays.
+    #[arg(long, value_name = "N", default_value_t = 1)]
     queue_depth: u16,
     /// Ray pool slots open to every class, beyond the queue depth per level
     /// [default: all a node has left over].
@@ -532,6 +534,8 @@ fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String
         "imbalance": imbalance(r),
         "rays_created": f.rays_created,
         "rays_terminated": f.rays_terminated,
+        // Each refusal cost its node a ray and a reply: see `--queue-depth`.
+        "rays_refused": f.loads.iter().flatten().map(|l| u64::from(l.refused)).sum::<u64>(),
         "array": opts.array,
         "grid": scene.grid,
         "size": opts.size,

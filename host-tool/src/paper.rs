@@ -118,20 +118,12 @@ fn run(
     run_on(scene, side, cfg, initial, policy, static_makespan, None)
 }
 
-fn options(
-    scene: &Scene,
-    side: [u16; 3],
-    cfg: &PaperConfig,
-    initial: Initial,
-    boundaries: Boundaries,
-) -> RenderOptions {
+/// The render options of a run: one slot kept per class level and the rest
+/// shared, as `host-tool render` does by default.
+fn options(side: [u16; 3], cfg: &PaperConfig, initial: Initial) -> RenderOptions {
     let mut opts = RenderOptions::new(side);
     opts.size = cfg.size;
     opts.initial = initial;
-    // The deepest pool that fits this array's class levels (at most 4). The
-    // arrays here are cubes, so any axis gives the bound of the driving one.
-    let levels = node_fw::pool::class_bound(side, scene.max_depth, 0, boundaries) + 1;
-    opts.level_depth = (u32::from(sim_board::SimNode::capacity().rays) / levels).clamp(1, 4) as u16;
     opts
 }
 
@@ -144,10 +136,7 @@ fn run_on(
     static_makespan: u64,
     partition: Option<crate::partition::Partition>,
 ) -> Result<Run, HostError> {
-    let sliding = !matches!(policy, Policy::Static);
-    let start = partition.as_ref().map_or(Boundaries::Whole, Partition::boundaries);
-    let lined_up = start.when_sliding(sliding);
-    let mut opts = options(scene, side, cfg, initial, lined_up);
+    let mut opts = options(side, cfg, initial);
     // About 64 load comparisons over a frame, threshold 3 (loads are running / waiting).
     let interval = (static_makespan / 64).max(10_000);
     if !matches!(policy, Policy::Static) {
@@ -194,7 +183,7 @@ fn preview(
     cfg: &PaperConfig,
     initial: Initial,
 ) -> Result<Partition, HostError> {
-    let mut opts = options(scene, side, cfg, initial, Boundaries::StaggeredRows);
+    let mut opts = options(side, cfg, initial);
     opts.layout = Layout::Preview;
     opts.driving_axis = Some(crate::partition::view_axis(scene));
     crate::render::initial_partition(scene, &opts, sim_board::SimNode::capacity())

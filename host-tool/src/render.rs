@@ -93,7 +93,7 @@ pub struct RenderOptions {
     pub size: [u16; 2],
     /// Who creates the initial rays.
     pub initial: Initial,
-    /// Ray pool slots per class level.
+    /// Ray pool slots kept for each class level.
     pub level_depth: u16,
     /// Ray pool slots beyond those, open to every class; `None`: all a node
     /// has left over.
@@ -110,13 +110,13 @@ pub struct RenderOptions {
 
 impl RenderOptions {
     /// Defaults for an array: 256 x 256 pixels, initial rays created where they
-    /// enter, depth 4, every slot left over shared.
+    /// enter, one slot kept per class level and every slot left over shared.
     pub fn new(array: [u16; 3]) -> Self {
         Self {
             array,
             size: [256, 256],
             initial: Initial::Entry,
-            level_depth: 4,
+            level_depth: 1,
             shared_slots: None,
             sim: SimConfig::new(array),
             balance: None,

@@ -111,6 +111,9 @@ fn default_render_writes_image_loads_and_summary() {
             assert!(n[key].is_u64(), "{key}");
         }
     }
+    let refused: u64 =
+        summary["nodes"].as_array().unwrap().iter().map(|n| n["refused"].as_u64().unwrap()).sum();
+    assert_eq!(summary["rays_refused"].as_u64(), Some(refused));
     let csv = std::fs::read_to_string(dir.join("loads.csv")).unwrap();
     assert_eq!(csv.lines().count(), 9);
     let png = image::open(dir.join("render.png")).unwrap();
