@@ -39,6 +39,28 @@ pub fn encode(src: &[u8], out: &mut [u8]) -> Option<usize> {
     Some(w)
 }
 
+/// Encodes in place: `buf[0]` is a free slot for the first code byte and
+/// `buf[1..]` the input. Each zero (and the slot) becomes the distance to the
+/// next zero or the end, so the encoding is `buf` itself. Only for inputs of
+/// at most 253 bytes, where no run reaches the 254 that would need a code
+/// byte inserted; `None` (and `buf` untouched) for longer ones. A frame is far
+/// shorter, and this spares the copy and the scratch buffer of [`encode`].
+pub fn encode_in_place(buf: &mut [u8]) -> Option<()> {
+    if buf.is_empty() || buf.len() > 254 {
+        return None;
+    }
+    let mut next = buf.len();
+    for (i, b) in buf.iter_mut().enumerate().skip(1).rev() {
+        if *b == 0 {
+            // Fewer than 255 bytes: the distance fits a code byte.
+            *b = (next - i) as u8;
+            next = i;
+        }
+    }
+    *buf.first_mut()? = next as u8;
+    Some(())
+}
+
 /// Decodes `buf` in place; the decoded length, or `None` when `buf` is
 /// empty (no encoding is) or a code byte is zero or points past the end.
 pub fn decode_in_place(buf: &mut [u8]) -> Option<usize> {
@@ -112,6 +134,22 @@ mod tests {
             prop_assert_eq!(a, b);
             if let Some(n) = a {
                 prop_assert_eq!(&ours[..n], &theirs[..n]);
+            }
+        }
+
+        /// In place, the same bytes as `encode`, up to the 253-byte limit.
+        #[test]
+        fn encodes_in_place_as_encode_does(src in input()) {
+            let mut out = [0u8; 700];
+            let n = encode(&src, &mut out).unwrap();
+            let mut buf = [&[0x5A][..], &src].concat();
+            if src.len() <= 253 {
+                prop_assert_eq!(encode_in_place(&mut buf), Some(()));
+                prop_assert_eq!(&buf[..], &out[..n]);
+            } else {
+                let before = buf.clone();
+                prop_assert_eq!(encode_in_place(&mut buf), None);
+                prop_assert_eq!(buf, before);
             }
         }
 

@@ -28,8 +28,9 @@ pub const MAX_PAYLOAD_LEN: usize = Frame::POSTCARD_MAX_SIZE + CRC_LEN;
 /// Largest encoded frame on the wire, both zero delimiters included.
 pub const MAX_FRAME_LEN: usize = cobs::max_encoding_length(MAX_PAYLOAD_LEN) + 2;
 
-// Fixed buffers on a 64 KiB MCU: keep frames small.
-const _: () = assert!(MAX_FRAME_LEN <= 160);
+// Fixed buffers on a 64 KiB MCU: keep frames small. And short of COBS's
+// first 254-byte run, so frames are stuffed in place.
+const _: () = assert!(MAX_FRAME_LEN <= 160 && MAX_PAYLOAD_LEN < 254);
 
 /// Why a frame could not be encoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -54,25 +55,28 @@ pub enum DecodeError {
 }
 
 /// Encodes `frame` into `out`, returning the number of bytes written.
+///
+/// The payload is written straight into `out` after the leading delimiter and
+/// a slot for the first COBS code byte, then stuffed in place: no scratch
+/// buffer to clear and no copy, which a node pays for on every message.
 pub fn encode_frame(frame: &Frame, out: &mut [u8]) -> Result<usize, EncodeError> {
-    let mut raw = [0u8; MAX_PAYLOAD_LEN];
-    let mut body_len = postcard::to_slice(frame, &mut raw).map_err(|_| EncodeError::BufferTooSmall)?.len();
+    const SMALL: EncodeError = EncodeError::BufferTooSmall;
+    // out = [0, code, payload.., 0]; the payload may use at most what is left.
+    let room = out.len().saturating_sub(3).min(MAX_PAYLOAD_LEN);
+    let payload = out.get_mut(2..2 + room).ok_or(SMALL)?;
+    let mut body_len = postcard::to_slice(frame, payload).map_err(|_| SMALL)?.len();
     if let Some(ack) = frame.ack {
-        let trailer = raw.get_mut(body_len..).ok_or(EncodeError::BufferTooSmall)?;
-        body_len += postcard::to_slice(&ack, trailer).map_err(|_| EncodeError::BufferTooSmall)?.len();
+        let trailer = payload.get_mut(body_len..).ok_or(SMALL)?;
+        body_len += postcard::to_slice(&ack, trailer).map_err(|_| SMALL)?.len();
     }
-    let crc = CRC.checksum(raw.get(..body_len).unwrap_or_default());
+    let crc = CRC.checksum(payload.get(..body_len).unwrap_or_default());
     let payload_len = body_len + CRC_LEN;
-    raw.get_mut(body_len..payload_len)
-        .ok_or(EncodeError::BufferTooSmall)?
-        .copy_from_slice(&crc.to_le_bytes());
-
-    let (first, rest) = out.split_first_mut().ok_or(EncodeError::BufferTooSmall)?;
-    *first = 0;
-    let payload = raw.get(..payload_len).unwrap_or_default();
-    let n = cobs::encode(payload, rest).ok_or(EncodeError::BufferTooSmall)?;
-    *rest.get_mut(n).ok_or(EncodeError::BufferTooSmall)? = 0;
-    Ok(n + 2)
+    payload.get_mut(body_len..payload_len).ok_or(SMALL)?.copy_from_slice(&crc.to_le_bytes());
+    // MAX_PAYLOAD_LEN bounds the payload well under COBS's in-place limit.
+    cobs::encode_in_place(out.get_mut(1..2 + payload_len).ok_or(SMALL)?).ok_or(SMALL)?;
+    *out.first_mut().ok_or(SMALL)? = 0;
+    *out.get_mut(2 + payload_len).ok_or(SMALL)? = 0;
+    Ok(payload_len + 3)
 }
 
 /// Incremental frame decoder with a fixed buffer.

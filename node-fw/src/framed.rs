@@ -8,7 +8,7 @@
 //! what is due.
 
 use heapless::Deque;
-use link_proto::Message;
+use link_proto::{MAX_FRAME_LEN, Message};
 
 use crate::link::{Links, Port};
 use crate::reliable::{Channel, ChannelStats};
@@ -18,6 +18,8 @@ use crate::reliable::{Channel, ChannelStats};
 pub struct FramedLinks<const W: usize, const Q: usize> {
     channels: [Channel<W>; 7],
     inbox: [Deque<Message, Q>; 7],
+    /// Where frames are encoded on their way out, one for all channels.
+    scratch: [u8; MAX_FRAME_LEN],
 }
 
 impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
@@ -33,7 +35,7 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
             Channel::new(t),
             Channel::new(t),
         ];
-        Self { channels, inbox: [const { Deque::new() }; 7] }
+        Self { channels, inbox: [const { Deque::new() }; 7], scratch: [0; MAX_FRAME_LEN] }
     }
 
     /// Sets the incarnation every channel announces: pick a new one on every
@@ -63,7 +65,7 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
     /// port's byte link is full.
     pub fn transmit(&mut self, now: u64, mut write: impl FnMut(Port, &[u8]) -> bool) {
         for (channel, port) in self.channels.iter_mut().zip(Port::ALL) {
-            channel.transmit(now, |bytes| write(port, bytes));
+            channel.transmit_via(now, &mut self.scratch, |bytes| write(port, bytes));
         }
     }
 

@@ -271,10 +271,21 @@ impl<const W: usize> Channel<W> {
 
     /// Writes what is due at `now` (sync and acks, new frames, resends after a
     /// time-out) through `write`, which returns false when the byte link is full.
-    pub fn transmit(&mut self, now: u64, mut write: impl FnMut(&[u8]) -> bool) {
-        let mut buf = [0u8; MAX_FRAME_LEN];
+    pub fn transmit(&mut self, now: u64, write: impl FnMut(&[u8]) -> bool) {
+        self.transmit_via(now, &mut [0; MAX_FRAME_LEN], write);
+    }
+
+    /// [`Channel::transmit`] encoding into the caller's scratch buffer, so
+    /// that a node polling seven channels clears none of them per poll.
+    pub fn transmit_via(
+        &mut self,
+        now: u64,
+        buf: &mut [u8; MAX_FRAME_LEN],
+        mut write: impl FnMut(&[u8]) -> bool,
+    ) {
+        let buf = buf.as_mut_slice();
         if let Some(incarnation) = self.sync_ack_due
-            && write_control(Message::SyncAck(incarnation), &mut buf, &mut write)
+            && write_control(Message::SyncAck(incarnation), buf, &mut write)
         {
             self.sync_ack_due = None;
         }
@@ -289,12 +300,12 @@ impl<const W: usize> Channel<W> {
         let data_due = self.synced && self.resend_from < self.unacked.len();
         if let Some(control) = self.control_due.clone()
             && !(data_due && matches!(control, Message::Ack(_)))
-            && write_control(control, &mut buf, &mut write)
+            && write_control(control, buf, &mut write)
         {
             self.control_due = None;
         }
         if !self.synced {
-            self.announce(now, &mut buf, &mut write);
+            self.announce(now, buf, &mut write);
             return;
         }
         while let Some(frame) = self.unacked.iter_mut().nth(self.resend_from) {
@@ -304,7 +315,7 @@ impl<const W: usize> Channel<W> {
                 Some(Message::Ack(seq)) => Some(seq),
                 _ => None,
             };
-            let Ok(n) = encode_frame(frame, &mut buf) else { break };
+            let Ok(n) = encode_frame(frame, buf) else { break };
             if !write(buf.get(..n).unwrap_or_default()) {
                 break;
             }

@@ -12,7 +12,7 @@ use core::fmt::Write as _;
 
 use cortex_m_rt::entry;
 use embedded_io::Write;
-use link_proto::{CameraMsg, LightMsg, MaterialMsg, Message, RayMsg, RayReply, SceneHeader, SphereMsg};
+use link_proto::{CameraMsg, LightMsg, MAX_FRAME_LEN, MaterialMsg, Message, RayMsg, RayReply, SceneHeader, SphereMsg};
 use node_board::board::mps2_an385::{self as board, Timer, Uart};
 use node_fw::camera::{primary_line, primary_ray};
 use node_fw::reliable::Channel;
@@ -220,17 +220,21 @@ fn channel_pair() -> (Channel<4>, Channel<4>) {
     (a, b)
 }
 
+/// Bytes on the way, and the scratch buffer frames are encoded in, kept
+/// between calls as `FramedLinks` keeps it.
+type Wire = (heapless::Vec<u8, 1024>, [u8; MAX_FRAME_LEN]);
+
 /// Moves what `from` has due at `round` over `wire` into `to`.
 fn pass(
     from: &mut Channel<4>,
     to: &mut Channel<4>,
     round: u64,
-    wire: &mut heapless::Vec<u8, 1024>,
+    wire: &mut Wire,
     deliver: impl FnMut(Message) -> bool,
 ) {
-    from.transmit(round, |f| wire.extend_from_slice(f).is_ok());
-    to.receive(wire, deliver);
-    wire.clear();
+    from.transmit_via(round, &mut wire.1, |f| wire.0.extend_from_slice(f).is_ok());
+    to.receive(&wire.0, deliver);
+    wire.0.clear();
 }
 
 /// Passing each of `rays` over a hop as nodes do: the ray through a reliable
@@ -239,7 +243,7 @@ fn pass(
 /// neighbour (per hop and end, bytes on the UART not included).
 fn hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     let (mut a, mut b) = channel_pair();
-    let mut wire = heapless::Vec::new();
+    let mut wire = (heapless::Vec::new(), [0; MAX_FRAME_LEN]);
     let (mut passed, start) = (0u64, timer.ticks());
     for round in 0..40u64 {
         for ray in rays {
@@ -270,7 +274,7 @@ fn hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
 /// on the UART not included).
 fn replies(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     let (mut a, mut b) = channel_pair();
-    let mut wire = heapless::Vec::new();
+    let mut wire = (heapless::Vec::new(), [0; MAX_FRAME_LEN]);
     let (mut passed, start) = (0u64, timer.ticks());
     for round in 0..40u64 {
         for ray in rays {
