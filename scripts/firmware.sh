@@ -2,7 +2,8 @@
 # Builds the node firmware for the emulated mps2-an385 and the real STM32F413,
 # prints their sizes against the budget (flash <= 128 KiB, RAM <= 64 KiB with
 # at least 8 KiB of stack), and measures the kernels' instruction counts under
-# QEMU (-icount shift=0). Needs the thumb targets, llvm-tools and
+# QEMU (-icount shift=0), failing when the in-memory board's cost model is more
+# than 2% off any of them. Needs the thumb targets, llvm-tools and
 # qemu-system-arm; scripts/test.sh installs them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -34,7 +35,31 @@ check_size "node (mps2-an385)" target/thumbv7m-none-eabi/release/node
 check_size "node (stm32f413)" target/thumbv7em-none-eabihf/release/node
 
 echo "kernels on the emulated Cortex-M3 (instructions, timed loops included):"
-timeout 300 qemu-system-arm -machine mps2-an385 -cpu cortex-m3 -nographic -icount shift=0 \
+KERNELS=$(timeout 300 qemu-system-arm -machine mps2-an385 -cpu cortex-m3 -nographic -icount shift=0 \
     -semihosting-config enable=on,target=native \
-    -kernel target/thumbv7m-none-eabi/release/kernels |
-    awk '/^kernel / { printf "  %-12s %8.1f per unit over %d units\n", $2, $3 / 100, $4 }'
+    -kernel target/thumbv7m-none-eabi/release/kernels)
+echo "$KERNELS" | awk '/^kernel / { printf "  %-12s %8.1f per unit over %d units\n", $2, $3 / 100, $4 }'
+
+# The in-memory board charges these costs (sim-board/src/cost.rs): a change to
+# the firmware that moves a kernel by more than 2% must update them, or every
+# simulated makespan would describe firmware that no longer exists.
+model() { sed -n "s/^ *$1: \([0-9_]*\),$/\1/p" sim-board/src/cost.rs | tr -d _; }
+check_cost() {
+    local kernel=$1 charged=$2
+    local measured
+    measured=$(echo "$KERNELS" | awk -v k="$kernel" '$1 == "kernel" && $2 == k { print $3 / 100 }')
+    [ -n "$measured" ] || { echo "error: kernel $kernel not measured" >&2; exit 1; }
+    if ! awk -v m="$measured" -v c="$charged" 'BEGIN { d = (m - c) / c; exit !(d <= 0.02 && d >= -0.02) }'; then
+        echo "error: kernel $kernel measures $measured instructions, the cost model charges $charged:" \
+            "update sim-board/src/cost.rs" >&2
+        exit 1
+    fi
+}
+check_cost cube_walk "$(model cube_step)"
+check_cost sphere_test "$(model sphere_test)"
+check_cost trace "$(model trace)"
+check_cost shade "$(model shade)"
+check_cost create "$(model create)"
+check_cost reply "$(model short_message)"
+check_cost hop "$(($(model ray_message) + $(model short_message)))"
+echo "cost model (sim-board/src/cost.rs) within 2% of every kernel"
