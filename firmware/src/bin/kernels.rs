@@ -12,7 +12,9 @@ use core::fmt::Write as _;
 
 use cortex_m_rt::entry;
 use embedded_io::Write;
-use link_proto::{CameraMsg, LightMsg, MAX_FRAME_LEN, MaterialMsg, Message, RayMsg, RayReply, SceneHeader, SphereMsg};
+use link_proto::{
+    CameraMsg, LightMsg, MAX_FRAME_LEN, MaterialMsg, Message, RayMsg, RayReply, SceneHeader, SphereMsg,
+};
 use node_board::board::mps2_an385::{self as board, Timer, Uart};
 use node_fw::camera::{primary_line, primary_ray};
 use node_fw::reliable::Channel;
