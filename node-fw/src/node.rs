@@ -472,7 +472,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     }
 
     fn take_reply(&mut self, port: Port, reply: RayReply) {
-        let sent = self.pool.get(reply.tag).is_some_and(|s| s.stage == Stage::Sent(port));
+        let sent = self.pool.is_sent(reply.tag, port);
         if !sent {
             return self.fail(ErrorCode::Unexpected, port as u32, 2);
         }
@@ -484,8 +484,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             self.slot_freed();
             // The neighbour had room: the next ray held back may have it too.
             self.retry_refused(port);
-        } else if let Some(slot) = self.pool.get_mut(reply.tag) {
-            slot.stage = Stage::Refused(port);
+        } else {
+            self.pool.set_stage(reply.tag, Stage::Refused(port));
         }
     }
 
@@ -500,9 +500,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// neighbour has refused us since its last `Space` (its next freed slot
     /// sends another).
     fn retry_refused(&mut self, port: Port) {
-        let held = self.pool.highest_class_where(|s| s.stage == Stage::Refused(port));
-        if let Some(slot) = held.and_then(|i| self.pool.get_mut(i)) {
-            slot.stage = Stage::Outbound(port);
+        if let Some(i) = self.pool.highest_refused(port) {
+            self.pool.set_stage(i, Stage::Outbound(port));
         }
     }
 
@@ -512,11 +511,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// not wait: it may take levels the held ones cannot, and holding it back
     /// would break the class levels' guarantee of progress.
     fn leave_by(&self, port: Port, class: u16) -> Stage {
-        if self.pool.iter().any(|(_, s)| s.stage == Stage::Refused(port) && s.ray.class >= class) {
-            Stage::Refused(port)
-        } else {
-            Stage::Outbound(port)
-        }
+        if self.pool.refused_at_least(port, class) { Stage::Refused(port) } else { Stage::Outbound(port) }
     }
 
     /// A slot freed: tell every neighbour we refused that it may retry.
@@ -541,13 +536,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// this way). Admission alone keeps the pool deadlock-free; the order only
     /// decides when.
     fn compute(&mut self, work: &mut Work) {
-        let ready = self.pool.lowest_class_where(|slot| match slot.stage {
-            Stage::Trace => true,
-            Stage::Shade { .. } => self.pool.can_admit(slot.ray.class.saturating_add(1)),
-            _ => false,
-        });
+        let ready = self.pool.lowest_ready(|slot| self.pool.can_admit(slot.ray.class.saturating_add(1)));
         if let Some(i) = ready {
-            match self.pool.get(i).map(|s| s.stage) {
+            match self.pool.get(i).map(|s| s.stage()) {
                 Some(Stage::Trace) => self.trace(i, work),
                 Some(Stage::Shade { .. }) => self.shade(i, work),
                 _ => {}
@@ -624,10 +615,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 }
             }
         };
-        if let Some(slot) = self.pool.get_mut(i) {
-            slot.ray = ray;
-            slot.stage = stage;
-        }
+        self.pool.set_ray(i, ray);
+        self.pool.set_stage(i, stage);
         if let Stage::Shade { children, share, rgb, .. } = stage {
             self.spawn_evaluated(i, &ray, (children, share, rgb), &spawned);
         }
@@ -690,16 +679,14 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             let own = ray.credit - u64::from(children) * share;
             Stage::Retire(retire(ray, rgb, own, children))
         };
-        if let Some(slot) = self.pool.get_mut(i) {
-            slot.stage = stage;
-        }
+        self.pool.set_stage(i, stage);
     }
 
     /// Spawns the rest of a hit's children, evaluated again, while the pool
     /// admits them; retires the parent once all are out.
     fn shade(&mut self, i: u16, work: &mut Work) {
         let Some(slot) = self.pool.get(i).copied() else { return };
-        let Stage::Shade { mut next, children, share, rgb } = slot.stage else { return };
+        let Stage::Shade { mut next, children, share, rgb } = slot.stage() else { return };
         let ray = slot.ray;
         let Ok(line) = Self::line_of(&ray) else { return self.fail(ErrorCode::BadRay, ray.pixel, 4) };
         let Some((t, sphere)) = self.hit_sphere(&ray) else {
@@ -1118,12 +1105,28 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     }
 
     fn send_rays<L: Links>(&mut self, links: &mut L, send: &mut impl FnMut(&mut L, Port, Message) -> bool) {
+        if !self.pool.any_leaving() {
+            return;
+        }
+        // Ports that refused a message in this pass stay full for the rest of
+        // it (room comes back only with what arrives), so nothing more is
+        // built for them: a board offered every waiting ray on every poll.
+        let mut full = [false; 7];
         // Downward, so removing a ray (swap-remove) never skips one.
         for n in (0..self.pool.len()).rev() {
-            let Some(i) = self.pool.held_at(n) else { continue };
-            let Some(stage) = self.pool.get(i).map(|s| s.stage) else { continue };
+            let Some(i) = self.pool.held_at(n).filter(|&i| self.pool.is_leaving(i)) else { continue };
+            let Some(stage) = self.pool.get(i).map(|s| s.stage()) else { continue };
+            let port = match stage {
+                Stage::Outbound(port) => port,
+                _ => Port::Host,
+            };
+            let Some(port_full) = full.get_mut(port.index()).filter(|f| !**f) else { continue };
             match stage {
-                Stage::Retire(r) if send(links, Port::Host, Message::Retire(r)) => {
+                Stage::Retire(r) => {
+                    if !send(links, Port::Host, Message::Retire(r)) {
+                        *port_full = true;
+                        continue;
+                    }
                     self.pool.remove(i);
                     self.slot_freed();
                 }
@@ -1135,14 +1138,14 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                     let Some(mut ray) = self.pool.get(i).map(|s| s.ray) else { continue };
                     ray.class = ray.class.saturating_add(1);
                     ray.tag = i;
-                    if send(links, port, Message::Ray(ray)) {
-                        if let Some(out) = self.outstanding.get_mut(port.index()) {
-                            *out += 1;
-                        }
-                        if let Some(slot) = self.pool.get_mut(i) {
-                            slot.stage = Stage::Sent(port);
-                        }
+                    if !send(links, port, Message::Ray(ray)) {
+                        *port_full = true;
+                        continue;
                     }
+                    if let Some(out) = self.outstanding.get_mut(port.index()) {
+                        *out += 1;
+                    }
+                    self.pool.set_stage(i, Stage::Sent(port));
                 }
                 _ => {}
             }

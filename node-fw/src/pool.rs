@@ -81,14 +81,49 @@ pub enum Stage {
     Refused(Port),
 }
 
+impl Stage {
+    fn kind(&self) -> Kind {
+        match *self {
+            Stage::Trace => Kind::Trace,
+            Stage::Shade { .. } => Kind::Shade,
+            Stage::Retire(_) => Kind::Retire,
+            Stage::Outbound(p) => Kind::Outbound(p),
+            Stage::Sent(p) => Kind::Sent(p),
+            Stage::Refused(p) => Kind::Refused(p),
+        }
+    }
+}
+
+/// A slot's stage without its payload: two bytes, kept beside the slots so
+/// that the scans a node makes on every poll read these, not whole slots (a
+/// slot is some 150 bytes; on a board of 96 slots, copying stages out of them
+/// cost more per poll than the messages the poll handled).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Free,
+    Trace,
+    Shade,
+    Retire,
+    Outbound(Port),
+    Sent(Port),
+    Refused(Port),
+}
+
 /// One occupied slot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Slot {
     /// The ray, in its wire form (exact state).
     pub ray: RayMsg,
-    /// What it waits for.
-    pub stage: Stage,
+    /// What it waits for; changed through [`RayPool::set_stage`].
+    stage: Stage,
     level: u16,
+}
+
+impl Slot {
+    /// What the ray waits for.
+    pub fn stage(&self) -> Stage {
+        self.stage
+    }
 }
 
 /// Why a pool cannot be configured.
@@ -104,6 +139,10 @@ pub struct PoolTooSmall {
 #[derive(Debug, Clone)]
 pub struct RayPool<const P: usize> {
     slots: [Option<Slot>; P],
+    /// Each slot's stage kind (`Free` for an empty slot).
+    kinds: [Kind; P],
+    /// Slots waiting to leave: `Retire` and `Outbound`.
+    leaving: u16,
     /// Indices of occupied slots (scans touch only these).
     held: heapless::Vec<u16, P>,
     /// Indices of free slots, lowest on top.
@@ -126,6 +165,8 @@ impl<const P: usize> RayPool<P> {
     pub const fn new() -> Self {
         Self {
             slots: [None; P],
+            kinds: [Kind::Free; P],
+            leaving: 0,
             held: heapless::Vec::new(),
             free: heapless::Vec::new(),
             used_per_level: [0; MAX_LEVELS],
@@ -159,7 +200,11 @@ impl<const P: usize> RayPool<P> {
             if let Some(slot) = self.slots.get_mut(usize::from(i)) {
                 *slot = None;
             }
+            if let Some(kind) = self.kinds.get_mut(usize::from(i)) {
+                *kind = Kind::Free;
+            }
         }
+        self.leaving = 0;
         self.held.clear();
         self.free.clear();
         for i in (0..P as u16).rev() {
@@ -200,8 +245,9 @@ impl<const P: usize> RayPool<P> {
         };
         match (self.slots.get_mut(usize::from(index)), self.used_per_level.get_mut(usize::from(level))) {
             (Some(slot), Some(used)) if self.held.push(index).is_ok() => {
-                *slot = Some(Slot { ray, stage, level });
+                *slot = Some(Slot { ray, stage: Stage::Trace, level });
                 *used += 1;
+                self.set_stage(index, stage);
                 Ok(index)
             }
             _ => {
@@ -213,6 +259,7 @@ impl<const P: usize> RayPool<P> {
 
     /// Frees slot `index`, returning its ray.
     pub fn remove(&mut self, index: u16) -> Option<Slot> {
+        self.set_kind(index, Kind::Free);
         let slot = self.slots.get_mut(usize::from(index))?.take()?;
         if let Some(used) = self.used_per_level.get_mut(usize::from(slot.level)) {
             *used = used.saturating_sub(1);
@@ -229,9 +276,47 @@ impl<const P: usize> RayPool<P> {
         self.slots.get(usize::from(index))?.as_ref()
     }
 
-    /// The slot at `index`, mutably.
-    pub fn get_mut(&mut self, index: u16) -> Option<&mut Slot> {
-        self.slots.get_mut(usize::from(index))?.as_mut()
+    /// Replaces the ray at `index` (its state after a walk).
+    pub fn set_ray(&mut self, index: u16, ray: RayMsg) {
+        if let Some(Some(slot)) = self.slots.get_mut(usize::from(index)) {
+            slot.ray = ray;
+        }
+    }
+
+    /// Moves the ray at `index` on to `stage`.
+    pub fn set_stage(&mut self, index: u16, stage: Stage) {
+        if let Some(Some(slot)) = self.slots.get_mut(usize::from(index)) {
+            slot.stage = stage;
+            self.set_kind(index, stage.kind());
+        }
+    }
+
+    fn set_kind(&mut self, index: u16, kind: Kind) {
+        let leaves = |k: Kind| matches!(k, Kind::Retire | Kind::Outbound(_));
+        if let Some(k) = self.kinds.get_mut(usize::from(index)) {
+            match (leaves(*k), leaves(kind)) {
+                (false, true) => self.leaving += 1,
+                (true, false) => self.leaving = self.leaving.saturating_sub(1),
+                _ => {}
+            }
+            *k = kind;
+        }
+    }
+
+    /// Whether any ray waits to leave (to the host or a neighbour).
+    pub fn any_leaving(&self) -> bool {
+        self.leaving > 0
+    }
+
+    /// Whether the ray at `index` waits to leave: the scan for rays to send
+    /// asks this of every held ray, so it reads a stage kind, not the slot.
+    pub fn is_leaving(&self, index: u16) -> bool {
+        matches!(self.kinds.get(usize::from(index)), Some(Kind::Retire | Kind::Outbound(_)))
+    }
+
+    /// Whether the ray at `index` was sent to `port` and awaits its reply.
+    pub fn is_sent(&self, index: u16, port: Port) -> bool {
+        self.kinds.get(usize::from(index)) == Some(&Kind::Sent(port))
     }
 
     /// Slot capacity.
@@ -250,22 +335,46 @@ impl<const P: usize> RayPool<P> {
         self.held.get(n).copied()
     }
 
-    /// The ray of the highest class among those `ready` accepts (ties: lowest
-    /// slot): the one a freed slot at any level can take.
-    pub fn highest_class_where(&self, ready: impl Fn(&Slot) -> bool) -> Option<u16> {
-        self.first_where(ready, |class, best| class > best)
+    /// The ray of the highest class among those held back after a refusal
+    /// by the neighbour on `port` (ties: lowest slot): the one a freed slot
+    /// at any level can take.
+    pub fn highest_refused(&self, port: Port) -> Option<u16> {
+        self.first_where(Kind::Refused(port), |_| true, |class, best| class > best)
     }
 
-    /// The ray of the lowest class among those `ready` accepts (ties: lowest
-    /// slot): the one earliest in its life, whose work further on (its walk
-    /// through the next nodes, its children) is the longest still to come.
-    pub fn lowest_class_where(&self, ready: impl Fn(&Slot) -> bool) -> Option<u16> {
-        self.first_where(ready, |class, best| class < best)
+    /// Whether a ray of at least `class` is held back for `port`.
+    pub fn refused_at_least(&self, port: Port, class: u16) -> bool {
+        self.of_kind(Kind::Refused(port)).any(|(_, s)| s.ray.class >= class)
     }
 
-    fn first_where(&self, ready: impl Fn(&Slot) -> bool, before: impl Fn(u16, u16) -> bool) -> Option<u16> {
+    /// The ray of the lowest class among those to trace, and those to shade
+    /// that `can_shade` accepts (ties: lowest slot): the one earliest in its
+    /// life, whose work further on (its walk through the next nodes, its
+    /// children) is the longest still to come.
+    pub fn lowest_ready(&self, can_shade: impl Fn(&Slot) -> bool) -> Option<u16> {
+        let trace = self.first_where(Kind::Trace, |_| true, |class, best| class < best);
+        let shade = self.first_where(Kind::Shade, can_shade, |class, best| class < best);
+        let key = |i: u16| self.get(i).map(|s| (s.ray.class, i));
+        match (trace, shade) {
+            (Some(t), Some(s)) => Some(if key(s) < key(t) { s } else { t }),
+            (t, s) => t.or(s),
+        }
+    }
+
+    /// Held rays whose stage is of `kind`.
+    fn of_kind(&self, kind: Kind) -> impl Iterator<Item = (u16, &Slot)> {
+        let matching = self.held.iter().filter(move |&&i| self.kinds.get(usize::from(i)) == Some(&kind));
+        matching.filter_map(|&i| self.get(i).map(|s| (i, s)))
+    }
+
+    fn first_where(
+        &self,
+        kind: Kind,
+        ready: impl Fn(&Slot) -> bool,
+        before: impl Fn(u16, u16) -> bool,
+    ) -> Option<u16> {
         let mut best: Option<(u16, u16)> = None;
-        for (i, slot) in self.iter() {
+        for (i, slot) in self.of_kind(kind) {
             let c = slot.ray.class;
             let better = best.is_none_or(|(class, at)| before(c, class) || (c == class && i < at));
             if better && ready(slot) {
@@ -284,6 +393,8 @@ impl<const P: usize> RayPool<P> {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
+
     use super::*;
     use link_proto::RayKind;
 
@@ -328,6 +439,67 @@ mod tests {
         assert_eq!(admitted(&mut pool, 1), 1);
         assert_eq!(admitted(&mut pool, 2), 1);
         assert!(pool.free.is_empty());
+    }
+
+    /// Stages a test drives rays through.
+    fn stage_of(code: u8, port: Port) -> Stage {
+        match code % 6 {
+            0 => Stage::Trace,
+            1 => Stage::Shade { next: 0, children: 1, share: 1, rgb: [0; 3] },
+            2 => Stage::Retire(Retire { pixel: 0, rgb: [0; 3], credit: 1, spawned: 0 }),
+            3 => Stage::Outbound(port),
+            4 => Stage::Sent(port),
+            _ => Stage::Refused(port),
+        }
+    }
+
+    proptest::proptest! {
+        /// The stage kinds kept beside the slots answer every question as a
+        /// scan of the slots' own stages does, whatever the admissions,
+        /// stage changes and removals.
+        #[test]
+        fn kinds_answer_as_the_slots_do(
+            ops in proptest::collection::vec((0u8..3, 0u16..64, 0u8..6, 0usize..7, 0u16..6), 1..300),
+        ) {
+            let mut pool = RayPool::<64>::new();
+            pool.configure(5, 1, None).unwrap();
+            for (op, at, code, p, class) in ops {
+                let port = Port::ALL[p];
+                match op {
+                    0 => { let _ = pool.admit(ray(class), stage_of(code, port)); }
+                    1 if pool.get(at).is_some() => pool.set_stage(at, stage_of(code, port)),
+                    _ => { pool.remove(at); }
+                }
+                let all: std::vec::Vec<(u16, Slot)> = pool.iter().map(|(i, s)| (i, *s)).collect();
+                let min_by = |keep: &dyn Fn(&Slot) -> bool, pick_high: bool| {
+                    let mut hits = all.iter().filter(|(_, s)| keep(s));
+                    let first = hits.next().map(|(i, s)| (s.ray.class, *i));
+                    hits.fold(first, |best, (i, s)| {
+                        let (c, b) = best.unwrap();
+                        let better = if pick_high { s.ray.class > c } else { s.ray.class < c };
+                        Some(if better || (s.ray.class == c && *i < b) { (s.ray.class, *i) } else { (c, b) })
+                    }).map(|(_, i)| i)
+                };
+                let leaving = |s: &Slot| matches!(s.stage(), Stage::Retire(_) | Stage::Outbound(_));
+                proptest::prop_assert_eq!(pool.any_leaving(), all.iter().any(|(_, s)| leaving(s)));
+                for (i, s) in &all {
+                    proptest::prop_assert_eq!(pool.is_leaving(*i), leaving(s));
+                    proptest::prop_assert_eq!(pool.is_sent(*i, port), s.stage() == Stage::Sent(port));
+                }
+                let refused = |s: &Slot| s.stage() == Stage::Refused(port);
+                proptest::prop_assert_eq!(pool.highest_refused(port), min_by(&refused, true));
+                let at_least = all.iter().any(|(_, s)| refused(s) && s.ray.class >= class);
+                proptest::prop_assert_eq!(pool.refused_at_least(port, class), at_least);
+                // Shading allowed only for even classes, to exercise the filter.
+                let can_shade = |s: &Slot| s.ray.class % 2 == 0;
+                let ready = |s: &Slot| match s.stage() {
+                    Stage::Trace => true,
+                    Stage::Shade { .. } => can_shade(s),
+                    _ => false,
+                };
+                proptest::prop_assert_eq!(pool.lowest_ready(can_shade), min_by(&ready, false));
+            }
+        }
     }
 
     #[test]

@@ -143,6 +143,11 @@ impl<const W: usize> Channel<W> {
 
     /// Queues a data message; hands it back when the window is full.
     pub fn send(&mut self, msg: Message) -> Result<(), Message> {
+        // Before building a frame: a node offers what it has every poll, and
+        // against a full window each offer would copy a whole frame for nothing.
+        if self.unacked.is_full() {
+            return Err(msg);
+        }
         let frame = Frame::new(self.next_seq, msg);
         match self.unacked.push_back(frame) {
             Ok(()) => {
