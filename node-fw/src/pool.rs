@@ -491,7 +491,7 @@ mod tests {
                 let at_least = all.iter().any(|(_, s)| refused(s) && s.ray.class >= class);
                 proptest::prop_assert_eq!(pool.refused_at_least(port, class), at_least);
                 // Shading allowed only for even classes, to exercise the filter.
-                let can_shade = |s: &Slot| s.ray.class % 2 == 0;
+                let can_shade = |s: &Slot| s.ray.class.is_multiple_of(2);
                 let ready = |s: &Slot| match s.stage() {
                     Stage::Trace => true,
                     Stage::Shade { .. } => can_shade(s),
