@@ -1112,40 +1112,60 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         // it (room comes back only with what arrives), so nothing more is
         // built for them: a board offered every waiting ray on every poll.
         let mut full = [false; 7];
-        // Downward, so removing a ray (swap-remove) never skips one.
-        for n in (0..self.pool.len()).rev() {
-            let Some(i) = self.pool.held_at(n).filter(|&i| self.pool.is_leaving(i)) else { continue };
-            let Some(stage) = self.pool.get(i).map(|s| s.stage()) else { continue };
-            let port = match stage {
-                Stage::Outbound(port) => port,
-                _ => Port::Host,
-            };
+        // Ports with rays for them and room so far: once none is left, the
+        // rest of the list cannot go either.
+        let mut open = Port::ALL.iter().filter(|&&p| self.pool.leaving_by(p) > 0).count();
+        // Marks a port full for the pass; whether none is left open.
+        let close = |port_full: &mut bool, open: &mut usize| {
+            *port_full = true;
+            *open = open.saturating_sub(1);
+            *open == 0
+        };
+        // Oldest first. A ray that goes drops out of the list and the next
+        // takes its place, so `n` moves on only past a ray that stays.
+        let mut n = 0;
+        while let Some(i) = self.pool.leaving_at(n) {
+            n += 1;
+            // Whether the port can take it, before the ray is copied out.
+            let Some(port) = self.pool.leaves_by(i) else { continue };
+            let waiting =
+                self.outstanding.get(port.index()).is_some_and(|&o| usize::from(o) >= MAX_OUTSTANDING);
             let Some(port_full) = full.get_mut(port.index()).filter(|f| !**f) else { continue };
+            if waiting {
+                // Replies come back only with what arrives: full for this pass.
+                if close(port_full, &mut open) {
+                    break;
+                }
+                continue;
+            }
+            let Some(stage) = self.pool.get(i).map(|s| s.stage()) else { continue };
             match stage {
                 Stage::Retire(r) => {
                     if !send(links, Port::Host, Message::Retire(r)) {
-                        *port_full = true;
+                        if close(port_full, &mut open) {
+                            break;
+                        }
                         continue;
                     }
                     self.pool.remove(i);
                     self.slot_freed();
+                    n -= 1;
                 }
                 Stage::Outbound(port) => {
-                    let Some(out) = self.outstanding.get_mut(port.index()) else { continue };
-                    if usize::from(*out) >= MAX_OUTSTANDING {
-                        continue;
-                    }
                     let Some(mut ray) = self.pool.get(i).map(|s| s.ray) else { continue };
                     ray.class = ray.class.saturating_add(1);
                     ray.tag = i;
                     if !send(links, port, Message::Ray(ray)) {
-                        *port_full = true;
+                        if close(port_full, &mut open) {
+                            break;
+                        }
                         continue;
                     }
                     if let Some(out) = self.outstanding.get_mut(port.index()) {
                         *out += 1;
                     }
                     self.pool.set_stage(i, Stage::Sent(port));
+                    n -= 1;
                 }
                 _ => {}
             }

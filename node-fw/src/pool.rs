@@ -141,8 +141,12 @@ pub struct RayPool<const P: usize> {
     slots: [Option<Slot>; P],
     /// Each slot's stage kind (`Free` for an empty slot).
     kinds: [Kind; P],
-    /// Slots waiting to leave: `Retire` and `Outbound`.
-    leaving: u16,
+    /// Slots waiting to leave (`Retire` and `Outbound`), oldest first.
+    leaving: heapless::Vec<u16, P>,
+    /// How many of them leave by each port (retirements by the host's).
+    leaving_by: [u16; 7],
+    /// Slots with work here (`Trace` and `Shade`), in no order.
+    ready: heapless::Vec<u16, P>,
     /// Indices of occupied slots (scans touch only these).
     held: heapless::Vec<u16, P>,
     /// Indices of free slots, lowest on top.
@@ -166,7 +170,9 @@ impl<const P: usize> RayPool<P> {
         Self {
             slots: [None; P],
             kinds: [Kind::Free; P],
-            leaving: 0,
+            leaving: heapless::Vec::new(),
+            leaving_by: [0; 7],
+            ready: heapless::Vec::new(),
             held: heapless::Vec::new(),
             free: heapless::Vec::new(),
             used_per_level: [0; MAX_LEVELS],
@@ -204,7 +210,9 @@ impl<const P: usize> RayPool<P> {
                 *kind = Kind::Free;
             }
         }
-        self.leaving = 0;
+        self.leaving.clear();
+        self.leaving_by = [0; 7];
+        self.ready.clear();
         self.held.clear();
         self.free.clear();
         for i in (0..P as u16).rev() {
@@ -292,26 +300,65 @@ impl<const P: usize> RayPool<P> {
     }
 
     fn set_kind(&mut self, index: u16, kind: Kind) {
+        let Some(k) = self.kinds.get_mut(usize::from(index)) else { return };
+        let was = core::mem::replace(k, kind);
+        if let Some(n) = Self::port_of(was).and_then(|p| self.leaving_by.get_mut(p.index())) {
+            *n = n.saturating_sub(1);
+        }
+        if let Some(n) = Self::port_of(kind).and_then(|p| self.leaving_by.get_mut(p.index())) {
+            *n += 1;
+        }
         let leaves = |k: Kind| matches!(k, Kind::Retire | Kind::Outbound(_));
-        if let Some(k) = self.kinds.get_mut(usize::from(index)) {
-            match (leaves(*k), leaves(kind)) {
-                (false, true) => self.leaving += 1,
-                (true, false) => self.leaving = self.leaving.saturating_sub(1),
-                _ => {}
+        let works = |k: Kind| matches!(k, Kind::Trace | Kind::Shade);
+        match (leaves(was), leaves(kind)) {
+            // Cannot fail: each list holds at most the P slots.
+            (false, true) => drop(self.leaving.push(index)),
+            (true, false) => {
+                if let Some(pos) = self.leaving.iter().position(|&i| i == index) {
+                    self.leaving.remove(pos);
+                }
             }
-            *k = kind;
+            _ => {}
+        }
+        match (works(was), works(kind)) {
+            (false, true) => drop(self.ready.push(index)),
+            (true, false) => {
+                if let Some(pos) = self.ready.iter().position(|&i| i == index) {
+                    self.ready.swap_remove(pos);
+                }
+            }
+            _ => {}
         }
     }
 
     /// Whether any ray waits to leave (to the host or a neighbour).
     pub fn any_leaving(&self) -> bool {
-        self.leaving > 0
+        !self.leaving.is_empty()
     }
 
-    /// Whether the ray at `index` waits to leave: the scan for rays to send
-    /// asks this of every held ray, so it reads a stage kind, not the slot.
-    pub fn is_leaving(&self, index: u16) -> bool {
-        matches!(self.kinds.get(usize::from(index)), Some(Kind::Retire | Kind::Outbound(_)))
+    /// The `n`-th ray waiting to leave, oldest first. A ray that leaves (or
+    /// is sent and awaits its reply) drops out, and the next takes its place.
+    pub fn leaving_at(&self, n: usize) -> Option<u16> {
+        self.leaving.get(n).copied()
+    }
+
+    /// Where the ray at `index` leaves by: the neighbour's port, or the host's
+    /// for a retirement; `None` if it does not wait to leave.
+    pub fn leaves_by(&self, index: u16) -> Option<Port> {
+        Self::port_of(*self.kinds.get(usize::from(index))?)
+    }
+
+    /// How many rays wait to leave by `port`.
+    pub fn leaving_by(&self, port: Port) -> u16 {
+        self.leaving_by.get(port.index()).copied().unwrap_or(0)
+    }
+
+    fn port_of(kind: Kind) -> Option<Port> {
+        match kind {
+            Kind::Outbound(port) => Some(port),
+            Kind::Retire => Some(Port::Host),
+            _ => None,
+        }
     }
 
     /// Whether the ray at `index` was sent to `port` and awaits its reply.
@@ -327,12 +374,6 @@ impl<const P: usize> RayPool<P> {
     /// Indices and slots of every held ray.
     pub fn iter(&self) -> impl Iterator<Item = (u16, &Slot)> {
         self.held.iter().filter_map(|&i| self.get(i).map(|s| (i, s)))
-    }
-
-    /// Index of the `n`-th held ray (in no particular order), for loops that
-    /// remove rays as they go: walk `n` downward from `len() - 1`.
-    pub fn held_at(&self, n: usize) -> Option<u16> {
-        self.held.get(n).copied()
     }
 
     /// The ray of the highest class among those held back after a refusal
@@ -352,13 +393,15 @@ impl<const P: usize> RayPool<P> {
     /// life, whose work further on (its walk through the next nodes, its
     /// children) is the longest still to come.
     pub fn lowest_ready(&self, can_shade: impl Fn(&Slot) -> bool) -> Option<u16> {
-        let trace = self.first_where(Kind::Trace, |_| true, |class, best| class < best);
-        let shade = self.first_where(Kind::Shade, can_shade, |class, best| class < best);
-        let key = |i: u16| self.get(i).map(|s| (s.ray.class, i));
-        match (trace, shade) {
-            (Some(t), Some(s)) => Some(if key(s) < key(t) { s } else { t }),
-            (t, s) => t.or(s),
+        let mut best: Option<(u16, u16)> = None;
+        for &i in &self.ready {
+            let Some(slot) = self.get(i) else { continue };
+            let key = (slot.ray.class, i);
+            if best.is_none_or(|b| key < b) && (matches!(slot.stage, Stage::Trace) || can_shade(slot)) {
+                best = Some(key);
+            }
         }
+        best.map(|(_, i)| i)
     }
 
     /// Held rays whose stage is of `kind`.
@@ -482,8 +525,21 @@ mod tests {
                 };
                 let leaving = |s: &Slot| matches!(s.stage(), Stage::Retire(_) | Stage::Outbound(_));
                 proptest::prop_assert_eq!(pool.any_leaving(), all.iter().any(|(_, s)| leaving(s)));
+                let mut listed: std::vec::Vec<u16> = (0..).map_while(|n| pool.leaving_at(n)).collect();
+                listed.sort_unstable();
+                let mut want: std::vec::Vec<u16> = all.iter().filter(|(_, s)| leaving(s)).map(|(i, _)| *i).collect();
+                want.sort_unstable();
+                proptest::prop_assert_eq!(listed, want);
+                for p in Port::ALL {
+                    let by = |s: &Slot| match s.stage() {
+                        Stage::Outbound(q) => q == p,
+                        Stage::Retire(_) => p == Port::Host,
+                        _ => false,
+                    };
+                    let n = all.iter().filter(|(_, s)| by(s)).count();
+                    proptest::prop_assert_eq!(usize::from(pool.leaving_by(p)), n);
+                }
                 for (i, s) in &all {
-                    proptest::prop_assert_eq!(pool.is_leaving(*i), leaving(s));
                     proptest::prop_assert_eq!(pool.is_sent(*i, port), s.stage() == Stage::Sent(port));
                 }
                 let refused = |s: &Slot| s.stage() == Stage::Refused(port);
@@ -500,6 +556,23 @@ mod tests {
                 proptest::prop_assert_eq!(pool.lowest_ready(can_shade), min_by(&ready, false));
             }
         }
+    }
+
+    #[test]
+    fn rays_leave_oldest_first() {
+        let mut pool = RayPool::<8>::new();
+        pool.configure(2, 1, None).unwrap();
+        let [a, b, c] = [0, 1, 2].map(|_| pool.admit(ray(0), Stage::Trace).unwrap());
+        for i in [c, a, b] {
+            pool.set_stage(i, Stage::Outbound(Port::Host));
+        }
+        let list = |pool: &RayPool<8>| (0..).map_while(|n| pool.leaving_at(n)).collect::<std::vec::Vec<_>>();
+        assert_eq!(list(&pool), [c, a, b]);
+        pool.set_stage(a, Stage::Sent(Port::Host));
+        assert_eq!(list(&pool), [c, b]);
+        pool.set_stage(a, Stage::Outbound(Port::Host));
+        pool.remove(c);
+        assert_eq!(list(&pool), [b, a]);
     }
 
     #[test]
