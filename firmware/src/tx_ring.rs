@@ -31,16 +31,19 @@ impl TxRing {
     }
 
     /// The next byte to send, if any.
+    #[inline]
     pub fn front(&self) -> Option<u8> {
         self.bytes.front().copied()
     }
 
     /// Drops the byte just sent.
+    #[inline]
     pub fn pop(&mut self) {
         self.bytes.pop_front();
     }
 
     /// Whether nothing waits.
+    #[inline]
     pub fn is_empty(&self) -> bool {
         self.bytes.is_empty()
     }

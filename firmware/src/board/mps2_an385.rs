@@ -40,6 +40,7 @@ impl Uart {
         Self { base }
     }
 
+    #[inline]
     fn state(&self) -> u32 {
         Reg::at(self.base, STATE).read()
     }
@@ -50,6 +51,7 @@ impl ErrorType for Uart {
 }
 
 impl ReadReady for Uart {
+    #[inline]
     fn read_ready(&mut self) -> Result<bool, Infallible> {
         Ok(self.state() & STATE_RX_FULL != 0)
     }
@@ -57,6 +59,7 @@ impl ReadReady for Uart {
 
 impl Read for Uart {
     /// Blocks until a byte arrives (embedded-io's contract); reads one.
+    #[inline]
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, Infallible> {
         let Some(first) = buf.first_mut() else { return Ok(0) };
         while self.state() & STATE_RX_FULL == 0 {}
@@ -66,6 +69,7 @@ impl Read for Uart {
 }
 
 impl WriteReady for Uart {
+    #[inline]
     fn write_ready(&mut self) -> Result<bool, Infallible> {
         Ok(self.state() & STATE_TX_FULL == 0)
     }
@@ -73,6 +77,7 @@ impl WriteReady for Uart {
 
 impl Write for Uart {
     /// Blocks until there is room (embedded-io's contract); writes one byte.
+    #[inline]
     fn write(&mut self, buf: &[u8]) -> Result<usize, Infallible> {
         let Some(&first) = buf.first() else { return Ok(0) };
         while self.state() & STATE_TX_FULL != 0 {}
