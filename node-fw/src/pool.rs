@@ -310,25 +310,8 @@ impl<const P: usize> RayPool<P> {
         }
         let leaves = |k: Kind| matches!(k, Kind::Retire | Kind::Outbound(_));
         let works = |k: Kind| matches!(k, Kind::Trace | Kind::Shade);
-        match (leaves(was), leaves(kind)) {
-            // Cannot fail: each list holds at most the P slots.
-            (false, true) => drop(self.leaving.push(index)),
-            (true, false) => {
-                if let Some(pos) = self.leaving.iter().position(|&i| i == index) {
-                    self.leaving.remove(pos);
-                }
-            }
-            _ => {}
-        }
-        match (works(was), works(kind)) {
-            (false, true) => drop(self.ready.push(index)),
-            (true, false) => {
-                if let Some(pos) = self.ready.iter().position(|&i| i == index) {
-                    self.ready.swap_remove(pos);
-                }
-            }
-            _ => {}
-        }
+        enlist(&mut self.leaving, index, leaves(was), leaves(kind));
+        enlist(&mut self.ready, index, works(was), works(kind));
     }
 
     /// Whether any ray waits to leave (to the host or a neighbour).
@@ -380,7 +363,8 @@ impl<const P: usize> RayPool<P> {
     /// by the neighbour on `port` (ties: lowest slot): the one a freed slot
     /// at any level can take.
     pub fn highest_refused(&self, port: Port) -> Option<u16> {
-        self.first_where(Kind::Refused(port), |_| true, |class, best| class > best)
+        let key = |&(i, s): &(u16, &Slot)| (s.ray.class, core::cmp::Reverse(i));
+        self.of_kind(Kind::Refused(port)).max_by_key(key).map(|(i, _)| i)
     }
 
     /// Whether a ray of at least `class` is held back for `port`.
@@ -410,27 +394,25 @@ impl<const P: usize> RayPool<P> {
         matching.filter_map(|&i| self.get(i).map(|s| (i, s)))
     }
 
-    fn first_where(
-        &self,
-        kind: Kind,
-        ready: impl Fn(&Slot) -> bool,
-        before: impl Fn(u16, u16) -> bool,
-    ) -> Option<u16> {
-        let mut best: Option<(u16, u16)> = None;
-        for (i, slot) in self.of_kind(kind) {
-            let c = slot.ray.class;
-            let better = best.is_none_or(|(class, at)| before(c, class) || (c == class && i < at));
-            if better && ready(slot) {
-                best = Some((c, i));
-            }
-        }
-        best.map(|(_, i)| i)
-    }
-
     fn free_level(&self, class: u16) -> Option<u16> {
         let class = class.min(self.top);
         let room = |l: u16| if l == 0 { self.base } else { self.depth };
         (0..=class).rev().find(|&l| self.used_per_level.get(usize::from(l)).is_some_and(|&u| u < room(l)))
+    }
+}
+
+/// Adds `index` to `list` or takes it out, as its membership changes from
+/// `was` to `is`; the others keep their order.
+fn enlist<const P: usize>(list: &mut heapless::Vec<u16, P>, index: u16, was: bool, is: bool) {
+    match (was, is) {
+        // Cannot fail: a list holds at most the P slots.
+        (false, true) => drop(list.push(index)),
+        (true, false) => {
+            if let Some(pos) = list.iter().position(|&i| i == index) {
+                list.remove(pos);
+            }
+        }
+        _ => {}
     }
 }
 
@@ -514,14 +496,10 @@ mod tests {
                     _ => { pool.remove(at); }
                 }
                 let all: std::vec::Vec<(u16, Slot)> = pool.iter().map(|(i, s)| (i, *s)).collect();
+                // Lowest (or highest) class first, then lowest slot.
                 let min_by = |keep: &dyn Fn(&Slot) -> bool, pick_high: bool| {
-                    let mut hits = all.iter().filter(|(_, s)| keep(s));
-                    let first = hits.next().map(|(i, s)| (s.ray.class, *i));
-                    hits.fold(first, |best, (i, s)| {
-                        let (c, b) = best.unwrap();
-                        let better = if pick_high { s.ray.class > c } else { s.ray.class < c };
-                        Some(if better || (s.ray.class == c && *i < b) { (s.ray.class, *i) } else { (c, b) })
-                    }).map(|(_, i)| i)
+                    let rank = |s: &Slot| if pick_high { u16::MAX - s.ray.class } else { s.ray.class };
+                    all.iter().filter(|(_, s)| keep(s)).map(|(i, s)| (rank(s), *i)).min().map(|(_, i)| i)
                 };
                 let leaving = |s: &Slot| matches!(s.stage(), Stage::Retire(_) | Stage::Outbound(_));
                 proptest::prop_assert_eq!(pool.any_leaving(), all.iter().any(|(_, s)| leaving(s)));
