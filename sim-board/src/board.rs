@@ -276,6 +276,15 @@ fn build_nodes(first: usize, count: usize) -> Vec<Box<SimNode>> {
         .unwrap_or_default()
 }
 
+/// One boxed node built on the caller's stack, where [`build_nodes`] could
+/// not start its thread. Never inlined: inlined, the node's megabyte would
+/// sit in the caller's frame even when this is not called (a release build of
+/// [`Board::new`] then overflowed a test thread's 2 MiB stack).
+#[inline(never)]
+fn boxed_node(id: usize) -> Box<SimNode> {
+    Box::new(SimNode::new(id as u16))
+}
+
 /// X x Y x Z nodes running the node firmware, wired to their face neighbours.
 pub struct Board {
     config: SimConfig,
@@ -310,7 +319,7 @@ impl Board {
             }
             neighbours.push(n);
             slots.push(Slot {
-                node: nodes.next().unwrap_or_else(|| Box::new(SimNode::new(id as u16))),
+                node: nodes.next().unwrap_or_else(|| boxed_node(id)),
                 clock: 0,
                 ports: Default::default(),
                 wired,
