@@ -1,7 +1,10 @@
 //! Fitting a partition to a cost map ([`crate::cost_map`]): the planes
 //! across the driving axis by rectilinear partitioning and a local search,
 //! then each slab's own columns, each row along the driving axis exactly,
-//! and every node's cost with rays routed as the nodes route them.
+//! and every node's cost with rays routed as the nodes route them; the
+//! family's exact floor ([`floor`]) is one more start.
+
+pub mod floor;
 
 use link_proto::Boundaries;
 use node_fw::CubeBox;
@@ -19,9 +22,10 @@ impl Partition {
     /// given the other's cuts; then moved a cube at a time while that lowers
     /// the busiest node, every boundary's crossings counted and rays routed as
     /// the nodes route them ([`Self::node_costs`]). Then each slab across the
-    /// first routed axis may cut its own columns, searched the same way; the
-    /// nodes' dimension-order routing still needs nothing but their own box.
-    /// Rows are cut along the driving axis exactly ([`row_cuts`]). From the
+    /// first routed axis may cut its own columns, searched the same way, and
+    /// also from the family's exact floor ([`floor::floor`], which leaves out
+    /// forwarding); the nodes' dimension-order routing still needs nothing
+    /// but their own box. Rows are cut along the driving axis exactly ([`row_cuts`]). From the
     /// true cost map this is an oracle; from a preview render's, a start the
     /// host can afford. Its boundaries line up at least as far as `most`
     /// allows (the nodes' pools size for the forwarding that staggered
@@ -58,9 +62,12 @@ impl Partition {
             return Ok(p);
         }
         // Beyond whole planes: each slab across the first routed axis cuts its
-        // own columns, from the whole cuts or from its own cubes' costs.
+        // own columns, from the whole cuts, from its own cubes' costs, or as
+        // the family's floor cuts them.
         let mut best = (whole, p.clone());
-        for start in [p.slabs_alike(), p.slabs_on_their_own(&cells)] {
+        let exact = floor::floor(map, array, driving_axis)?.map(|f| f.partition);
+        for start in [Some(p.slabs_alike()), Some(p.slabs_on_their_own(&cells)), exact].into_iter().flatten()
+        {
             let mut jagged = start;
             let s = jagged.refine(map, most);
             if s < best.0 {
@@ -371,30 +378,7 @@ pub fn row_cuts(rows: &[RowProfile], parts: usize) -> Vec<u16> {
     };
     let cost: Vec<Vec<u64>> =
         (0..=n).map(|i| (0..=n).map(|j| if i < j { part(i, j) } else { 0 }).collect()).collect();
-    // best[p][j]: the least busiest part of layers 0..j in p parts; from[p][j]: its last cut.
-    let mut best = vec![vec![u64::MAX; n + 1]; parts + 1];
-    let mut from = vec![vec![0usize; n + 1]; parts + 1];
-    best[0][0] = 0;
-    for p in 1..=parts {
-        for j in p..=n - (parts - p) {
-            for i in p - 1..j {
-                if best[p - 1][i] == u64::MAX {
-                    continue;
-                }
-                let v = best[p - 1][i].max(cost[i][j]);
-                if v < best[p][j] {
-                    (best[p][j], from[p][j]) = (v, i);
-                }
-            }
-        }
-    }
-    let mut cuts = vec![n];
-    for p in (1..=parts).rev() {
-        let j = cuts[cuts.len() - 1];
-        cuts.push(from[p][j]);
-    }
-    cuts.reverse();
-    cuts.into_iter().map(|c| c as u16).collect()
+    floor::least_busiest(n, parts, |i, j| cost[i][j]).1
 }
 
 /// A fit's score: the busiest node's cost, then the sum of squares.

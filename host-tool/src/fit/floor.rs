@@ -1,0 +1,387 @@
+//! The least busiest node a partition of the routed family can have, found
+//! exactly by dynamic programming over every box a row of nodes can take.
+//!
+//! The family is the one the nodes route ([`Partition::routed_axes`]):
+//! planes across the slab axis whole, each slab cutting its own columns,
+//! each row along the driving axis cutting its own nodes. Every node pays its
+//! cubes and the crossings of its faces inside the grid
+//! ([`CostMap::node_cost`]); rays forwarded through a node on their way to a
+//! non-neighbour are left out. So the value is a floor under the busiest
+//! node of any partition of the family ([`Partition::node_costs`] only adds
+//! to it), and the partition reaching it is a start for the local search.
+//!
+//! Every row is a rectangle across the slab and column axes; its best cut
+//! along the driving axis is a small dynamic program ([`least_busiest`]).
+//! Tabled for every rectangle, the columns of each slab and then the slabs
+//! are each one more such program over the table.
+
+use std::num::NonZeroUsize;
+
+use crate::cost_map::CostMap;
+use crate::error::HostError;
+use crate::partition::Partition;
+
+/// Work (row programs times their steps) above which [`floor`] declines:
+/// about a second on this machine's two cores. A 32^3 grid on 8x8x8 nodes
+/// takes 1.1e9.
+pub const WORK_BUDGET: u64 = 3_000_000_000;
+
+/// The floor and a partition of the family whose nodes' own costs reach it.
+#[derive(Debug, Clone)]
+pub struct Floor {
+    /// The least busiest node's cost over the family.
+    pub cost: u64,
+    /// A partition whose busiest node, priced by [`CostMap::node_cost`],
+    /// pays exactly that.
+    pub partition: Partition,
+}
+
+/// The family's floor for `map` over `array` along `driving_axis`, or
+/// `None` where tabling every rectangle would cost more than [`WORK_BUDGET`].
+pub fn floor(map: &CostMap, array: [u16; 3], driving_axis: u8) -> Result<Option<Floor>, HostError> {
+    let mut partition = Partition::even(map.grid, array, driving_axis)?;
+    let [s, c] = partition.routed_axes();
+    let d = usize::from(driving_axis);
+    let g = map.grid.map(usize::from);
+    let n = array.map(usize::from);
+    let rectangles = (g[s] * (g[s] + 1) / 2) as u64 * (g[c] * (g[c] + 1) / 2) as u64;
+    if rectangles * (n[d] * g[d] * g[d] / 2) as u64 > WORK_BUDGET {
+        return Ok(None);
+    }
+    let sums = LayerSums::new(map, [s, c, d]);
+    let table = RowTable::new(&sums, n[d]);
+    // Per slab, its best columns; over the slabs, the best cut.
+    let slabs: Vec<Vec<(u64, Vec<u16>)>> = (0..=g[s])
+        .map(|s0| {
+            let columns = |s1| least_busiest(g[c], n[c], |c0, c1| table.get(s0, s1, c0, c1));
+            (0..=g[s]).map(|s1| if s0 < s1 { columns(s1) } else { (0, Vec::new()) }).collect()
+        })
+        .collect();
+    let (cost, slab_cuts) = least_busiest(g[s], n[s], |s0, s1| slabs[s0][s1].0);
+    let columns: Vec<Vec<u16>> =
+        slab_cuts.windows(2).map(|w| slabs[usize::from(w[0])][usize::from(w[1])].1.clone()).collect();
+    partition.cuts[s] = slab_cuts;
+    partition.slab_cuts = Some(columns);
+    // Each row's own cuts, row by row in the partition's order.
+    let rows = (0..partition.len() / n[d]).map(|row| {
+        let mut node = [0u16; 3];
+        let [a0, a1] = partition.row_axes();
+        node[a0] = (row % n[a0]) as u16;
+        node[a1] = (row / n[a0]) as u16;
+        let span = |a: usize| {
+            let cuts = partition.cuts_at(a, node);
+            (usize::from(cuts[usize::from(node[a])]), usize::from(cuts[usize::from(node[a]) + 1]))
+        };
+        let ((s0, s1), (c0, c1)) = (span(s), span(c));
+        sums.row(n[d], [s0, s1, c0, c1]).1
+    });
+    partition.row_cuts = Some(rows.collect());
+    Ok(Some(Floor { cost, partition }))
+}
+
+/// Cuts `0 = k_0 < ... < k_parts = len` minimising the largest
+/// `cost(k_i, k_i+1)`: that largest cost and the cuts (exact, dynamic
+/// programming; every part keeps at least one unit).
+pub fn least_busiest(len: usize, parts: usize, cost: impl Fn(usize, usize) -> u64) -> (u64, Vec<u16>) {
+    let parts = parts.clamp(1, len.max(1));
+    let mut best = vec![vec![u64::MAX; len + 1]; parts + 1];
+    let mut from = vec![vec![0usize; len + 1]; parts + 1];
+    best[0][0] = 0;
+    for p in 1..=parts {
+        for j in p..=len - (parts - p) {
+            for i in p - 1..j {
+                if best[p - 1][i] != u64::MAX {
+                    let v = best[p - 1][i].max(cost(i, j));
+                    if v < best[p][j] {
+                        (best[p][j], from[p][j]) = (v, i);
+                    }
+                }
+            }
+        }
+    }
+    let mut cuts = vec![len];
+    for p in (1..=parts).rev() {
+        cuts.push(from[p][cuts[cuts.len() - 1]]);
+    }
+    cuts.reverse();
+    (best[parts][len], cuts.into_iter().map(|k| k as u16).collect())
+}
+
+/// For every rectangle across the slab and column axes, the least busiest
+/// node of a row of nodes over it, its cut along the driving axis free.
+struct RowTable {
+    /// Cubes along the slab and column axes.
+    sides: [usize; 2],
+    /// Indexed by [`Self::key`].
+    least: Vec<u64>,
+}
+
+impl RowTable {
+    /// Tables every rectangle for rows of `parts` nodes, on every core.
+    fn new(sums: &LayerSums, parts: usize) -> Self {
+        let [gs, gc] = [sums.g[0], sums.g[1]];
+        let block = (gs + 1) * (gc + 1) * (gc + 1);
+        let mut least = vec![0u64; (gs + 1) * block];
+        let threads = std::thread::available_parallelism().map_or(1, NonZeroUsize::get);
+        let mut jobs: Vec<Vec<(usize, &mut [u64])>> = (0..threads).map(|_| Vec::new()).collect();
+        for (s0, rows) in least.chunks_mut(block).enumerate().take(gs) {
+            jobs[s0 % threads].push((s0, rows));
+        }
+        std::thread::scope(|scope| {
+            for job in jobs {
+                scope.spawn(move || {
+                    for (s0, rows) in job {
+                        sums.table_from(s0, parts, rows);
+                    }
+                });
+            }
+        });
+        Self { sides: [gs, gc], least }
+    }
+
+    /// Position of rectangle `[s0, s1) x [c0, c1)` in the table.
+    fn key(sides: [usize; 2], s0: usize, s1: usize, c0: usize, c1: usize) -> usize {
+        let [gs, gc] = sides;
+        ((s0 * (gs + 1) + s1) * (gc + 1) + c0) * (gc + 1) + c1
+    }
+
+    fn get(&self, s0: usize, s1: usize, c0: usize, c1: usize) -> u64 {
+        self.least[Self::key(self.sides, s0, s1, c0, c1)]
+    }
+}
+
+/// Per layer across the driving axis, running sums over the slab and column
+/// axes of what cubes cost and of what rays crossing each face cost a side.
+struct LayerSums {
+    /// Cubes along the slab, column and driving axes.
+    g: [usize; 3],
+    /// Per layer, 2-D running sums of the cubes' costs: `[c][s]`, one
+    /// past each, `g[0] + 1` wide.
+    cubes: Vec<Vec<u64>>,
+    /// Per layer, 2-D running sums of the faces to the next layer.
+    ahead: Vec<Vec<u64>>,
+    /// Per layer and plane across the slab axis (between `s` and `s + 1`),
+    /// running sums along the column axis.
+    across_slab: Vec<Vec<Vec<u64>>>,
+    /// Per layer and plane across the column axis, running sums along the
+    /// slab axis.
+    across_column: Vec<Vec<Vec<u64>>>,
+}
+
+impl LayerSums {
+    fn new(map: &CostMap, [s, c, d]: [usize; 3]) -> Self {
+        let grid = map.grid.map(usize::from);
+        let g = [grid[s], grid[c], grid[d]];
+        let index = |is: usize, ic: usize, k: usize| {
+            let mut cell = [0usize; 3];
+            (cell[s], cell[c], cell[d]) = (is, ic, k);
+            cell[0] + grid[0] * (cell[1] + grid[1] * cell[2])
+        };
+        let face = |axis: usize, at: usize, limit: usize, i: usize| {
+            if at + 1 < limit { map.face(axis, i) } else { 0 }
+        };
+        let plane = |f: &dyn Fn(usize, usize) -> u64| {
+            let w = g[0] + 1;
+            let mut p = vec![0u64; w * (g[1] + 1)];
+            for ic in 0..g[1] {
+                for is in 0..g[0] {
+                    p[(ic + 1) * w + is + 1] =
+                        f(is, ic) + p[ic * w + is + 1] + p[(ic + 1) * w + is] - p[ic * w + is];
+                }
+            }
+            p
+        };
+        let run = |len: usize, f: &dyn Fn(usize) -> u64| {
+            std::iter::once(0)
+                .chain((0..len).scan(0u64, |sum, i| {
+                    *sum += f(i);
+                    Some(*sum)
+                }))
+                .collect::<Vec<u64>>()
+        };
+        let layers = 0..g[2];
+        Self {
+            g,
+            cubes: layers.clone().map(|k| plane(&|is, ic| map.cell(index(is, ic, k)))).collect(),
+            ahead: layers.clone().map(|k| plane(&|is, ic| face(d, k, g[2], index(is, ic, k)))).collect(),
+            across_slab: layers
+                .clone()
+                .map(|k| (0..g[0]).map(|is| run(g[1], &|ic| face(s, is, g[0], index(is, ic, k)))).collect())
+                .collect(),
+            across_column: layers
+                .map(|k| (0..g[1]).map(|ic| run(g[0], &|is| face(c, ic, g[1], index(is, ic, k)))).collect())
+                .collect(),
+        }
+    }
+
+    /// Fills `rows` (the table's block for rectangles starting at `s0`).
+    fn table_from(&self, s0: usize, parts: usize, rows: &mut [u64]) {
+        let [gs, gc, _] = self.g;
+        for s1 in s0 + 1..=gs {
+            for c0 in 0..gc {
+                for c1 in c0 + 1..=gc {
+                    rows[RowTable::key([gs, gc], 0, s1, c0, c1)] = self.row(parts, [s0, s1, c0, c1]).0;
+                }
+            }
+        }
+    }
+
+    /// The least busiest node of a row of `parts` nodes over rectangle `r`,
+    /// and the row's cuts along the driving axis.
+    fn row(&self, parts: usize, r: [usize; 4]) -> (u64, Vec<u16>) {
+        let [gs, _, gd] = self.g;
+        // prefix[k]: layers 0..k; plane[k]: each side of a cut at k (none at the ends).
+        let mut prefix = vec![0u64; gd + 1];
+        let mut plane = vec![0u64; gd + 1];
+        for k in 0..gd {
+            prefix[k + 1] = prefix[k] + self.layer(k, r);
+            if k + 1 < gd {
+                plane[k + 1] = rectangle(&self.ahead[k], gs + 1, r);
+            }
+        }
+        least_busiest(gd, parts, |i, j| prefix[j] - prefix[i] + plane[i] + plane[j])
+    }
+
+    /// What layer `k` of a row over rectangle `r` costs its holder: its cubes
+    /// and the crossings of the row's side faces inside the grid.
+    fn layer(&self, k: usize, r: [usize; 4]) -> u64 {
+        let [gs, gc, _] = self.g;
+        let [s0, s1, c0, c1] = r;
+        let mut sum = rectangle(&self.cubes[k], gs + 1, r);
+        let along = |run: &Vec<u64>, lo: usize, hi: usize| run[hi] - run[lo];
+        if s0 > 0 {
+            sum += along(&self.across_slab[k][s0 - 1], c0, c1);
+        }
+        if s1 < gs {
+            sum += along(&self.across_slab[k][s1 - 1], c0, c1);
+        }
+        if c0 > 0 {
+            sum += along(&self.across_column[k][c0 - 1], s0, s1);
+        }
+        if c1 < gc {
+            sum += along(&self.across_column[k][c1 - 1], s0, s1);
+        }
+        sum
+    }
+}
+
+/// The sum over rectangle `[s0, s1) x [c0, c1)` from 2-D running sums `p`
+/// of row width `w`.
+fn rectangle(p: &[u64], w: usize, [s0, s1, c0, c1]: [usize; 4]) -> u64 {
+    p[c1 * w + s1] + p[c0 * w + s0] - p[c0 * w + s1] - p[c1 * w + s0]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{floor, least_busiest};
+    use crate::cost_map::CostMap;
+    use crate::partition::Partition;
+    use proptest::prelude::*;
+
+    /// Every way to cut `len` units into `parts` non-empty parts.
+    fn all_cuts(len: u16, parts: u16) -> Vec<Vec<u16>> {
+        if parts == 1 {
+            return vec![vec![0, len]];
+        }
+        (parts - 1..len)
+            .flat_map(|last| {
+                all_cuts(last, parts - 1).into_iter().map(move |mut c| {
+                    c.push(len);
+                    c
+                })
+            })
+            .collect()
+    }
+
+    /// Every combination of one choice from each list.
+    fn product(lists: &[Vec<Vec<u16>>]) -> Vec<Vec<Vec<u16>>> {
+        lists.iter().fold(vec![Vec::new()], |acc, list| {
+            acc.iter()
+                .flat_map(|pre| {
+                    list.iter().map(move |x| {
+                        let mut v = pre.clone();
+                        v.push(x.clone());
+                        v
+                    })
+                })
+                .collect()
+        })
+    }
+
+    /// The busiest node of every partition of the family, each node priced
+    /// on its own box: the least of them.
+    fn brute_force(map: &CostMap, array: [u16; 3], d: u8) -> u64 {
+        let p = Partition::even(map.grid, array, d).unwrap();
+        let [s, c] = p.routed_axes();
+        let (g, n) = (map.grid, array);
+        let rows = usize::from(n[0]) * usize::from(n[1]) * usize::from(n[2]) / usize::from(n[usize::from(d)]);
+        let mut least = u64::MAX;
+        for slabs in all_cuts(g[s], n[s]) {
+            let columns = vec![all_cuts(g[c], n[c]); usize::from(n[s])];
+            for columns in product(&columns) {
+                let along = vec![all_cuts(g[usize::from(d)], n[usize::from(d)]); rows];
+                for row_cuts in product(&along) {
+                    let mut q = p.clone();
+                    q.cuts[s] = slabs.clone();
+                    q.slab_cuts = Some(columns.clone());
+                    q.row_cuts = Some(row_cuts);
+                    let busiest = (0..q.len()).map(|id| map.node_cost(&q.bounds(id))).max().unwrap();
+                    least = least.min(busiest);
+                }
+            }
+        }
+        least
+    }
+
+    fn map_of(grid: [u16; 3], values: &[u64]) -> CostMap {
+        let mut map = CostMap::new(grid);
+        let mut v = values.iter().cycle().copied();
+        let cubes = map.compute.len();
+        for i in 0..cubes {
+            map.compute[i] = v.next().unwrap_or(0);
+            map.messages[i] = v.next().unwrap_or(0) / 4;
+            for a in 0..3 {
+                map.up[a][i] = v.next().unwrap_or(0);
+                map.down[a][i] = v.next().unwrap_or(0) / 2;
+            }
+        }
+        map
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        #[test]
+        fn floor_is_the_least_busiest_node_of_every_partition_of_the_family(
+            grid in prop::array::uniform3(2u16..=4),
+            array in prop::array::uniform3(1u16..=2),
+            d in 0u8..3,
+            values in prop::collection::vec(0u64..100, 1..=97),
+        ) {
+            let map = map_of(grid, &values);
+            let found = floor(&map, array, d).unwrap().unwrap();
+            prop_assert_eq!(found.cost, brute_force(&map, array, d));
+            // Its partition reaches it, and tiles the grid.
+            let p = &found.partition;
+            let busiest = (0..p.len()).map(|id| map.node_cost(&p.bounds(id))).max().unwrap();
+            prop_assert_eq!(busiest, found.cost);
+            let volume: u64 = (0..p.len()).map(|id| p.bounds(id).volume()).sum();
+            prop_assert_eq!(volume, grid.iter().map(|&g| u64::from(g)).product::<u64>());
+        }
+
+        #[test]
+        fn least_busiest_is_optimal_against_every_cut(
+            costs in prop::collection::vec(0u64..1000, 1..=81),
+            len in 1u16..=8,
+            parts in 1u16..=4,
+        ) {
+            prop_assume!(parts <= len);
+            let cost = |i: usize, j: usize| costs[(i * 9 + j) % costs.len()];
+            let (least, cuts) = least_busiest(usize::from(len), usize::from(parts), cost);
+            let worst = |c: &[u16]| c.windows(2).map(|w| cost(usize::from(w[0]), usize::from(w[1]))).max().unwrap();
+            prop_assert_eq!(worst(&cuts), least);
+            prop_assert_eq!(cuts.len(), usize::from(parts) + 1);
+            prop_assert!(cuts.windows(2).all(|w| w[0] < w[1]) && cuts[0] == 0 && cuts[usize::from(parts)] == len);
+            prop_assert_eq!(all_cuts(len, parts).iter().map(|c| worst(c)).min().unwrap(), least);
+        }
+    }
+}
