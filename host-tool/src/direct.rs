@@ -89,6 +89,12 @@ pub fn add_initial_rays(
     Ok(())
 }
 
+/// What every node pays for the broadcast scene whatever the partition: a
+/// short message per sphere and light, and six to begin and end.
+pub fn broadcast_cost(scene: &Scene, cost: &sim_board::CostModel) -> u64 {
+    (scene.spheres.len() + scene.lights.len() + 6) as u64 * cost.short_message
+}
+
 /// What each side of a hop pays: the ray's message and its reply, and half
 /// the receiver's walk set-up (a ray entering a node is set up again).
 fn hop_side(cost: &sim_board::CostModel) -> u64 {
