@@ -21,10 +21,14 @@ use crate::cost_map::CostMap;
 use crate::error::HostError;
 use crate::partition::Partition;
 
-/// Work (row programs times their steps) above which [`floor`] declines:
-/// about a second on this machine's two cores. A 32^3 grid on 8x8x8 nodes
-/// takes 1.1e9.
+/// Work (rectangles times their row program's steps) above which [`floor`]
+/// declines: a few seconds on this machine's two cores. A 32^3 grid on 8x8x8
+/// nodes takes 1.1e9.
 pub const WORK_BUDGET: u64 = 3_000_000_000;
+
+/// Table entries (one per pair of spans across the slab and column axes)
+/// above which [`floor`] declines: 128 MiB. A 32^3 grid takes 1.2e6.
+pub const TABLE_BUDGET: u64 = 1 << 24;
 
 /// The floor and a partition of the family whose nodes' own costs reach it.
 #[derive(Debug, Clone)]
@@ -37,17 +41,21 @@ pub struct Floor {
 }
 
 /// The family's floor for `map` over `array` along `driving_axis`, or
-/// `None` where tabling every rectangle would cost more than [`WORK_BUDGET`].
+/// `None` where tabling every rectangle would cost more time than
+/// [`WORK_BUDGET`] or more memory than [`TABLE_BUDGET`].
 pub fn floor(map: &CostMap, array: [u16; 3], driving_axis: u8) -> Result<Option<Floor>, HostError> {
     let mut partition = Partition::even(map.grid, array, driving_axis)?;
     let [s, c] = partition.routed_axes();
     let d = usize::from(driving_axis);
-    let g = map.grid.map(usize::from);
-    let n = array.map(usize::from);
-    let rectangles = (g[s] * (g[s] + 1) / 2) as u64 * (g[c] * (g[c] + 1) / 2) as u64;
-    if rectangles * (n[d] * g[d] * g[d] / 2) as u64 > WORK_BUDGET {
+    let g = map.grid.map(u64::from);
+    let spans = |a: usize| g[a] * (g[a] + 1) / 2;
+    let steps = u64::from(array[d]) * g[d] * g[d] / 2 + g[d];
+    let entries = ((g[s] + 1) * (g[c] + 1)).saturating_mul((g[s] + 1) * (g[c] + 1));
+    if spans(s).saturating_mul(spans(c)).saturating_mul(steps) > WORK_BUDGET || entries > TABLE_BUDGET {
         return Ok(None);
     }
+    let g = map.grid.map(usize::from);
+    let n = array.map(usize::from);
     let sums = LayerSums::new(map, [s, c, d]);
     let table = RowTable::new(&sums, n[d]);
     // Per slab, its best columns; over the slabs, the best cut.
@@ -346,6 +354,15 @@ mod tests {
             }
         }
         map
+    }
+
+    #[test]
+    fn floor_declines_grids_too_large_to_table() {
+        // Few steps per row, but 200^4 table entries: declined for memory.
+        assert!(floor(&CostMap::new([200, 200, 2]), [1, 1, 1], 2).unwrap().is_none());
+        // A small table, but too many steps per rectangle.
+        assert!(floor(&CostMap::new([64, 64, 64]), [8, 8, 8], 2).unwrap().is_none());
+        assert!(floor(&CostMap::new([16, 16, 16]), [4, 4, 4], 2).unwrap().is_some());
     }
 
     proptest! {
