@@ -72,16 +72,8 @@ pub fn floor(map: &CostMap, array: [u16; 3], driving_axis: u8) -> Result<Option<
     partition.slab_cuts = Some(columns);
     // Each row's own cuts, row by row in the partition's order.
     let rows = (0..partition.len() / n[d]).map(|row| {
-        let mut node = [0u16; 3];
-        let [a0, a1] = partition.row_axes();
-        node[a0] = (row % n[a0]) as u16;
-        node[a1] = (row / n[a0]) as u16;
-        let span = |a: usize| {
-            let cuts = partition.cuts_at(a, node);
-            (usize::from(cuts[usize::from(node[a])]), usize::from(cuts[usize::from(node[a]) + 1]))
-        };
-        let ((s0, s1), (c0, c1)) = (span(s), span(c));
-        sums.row(n[d], [s0, s1, c0, c1]).1
+        let ((s0, s1), (c0, c1)) = (partition.row_span(row, s), partition.row_span(row, c));
+        sums.row(n[d], [s0, s1, c0, c1].map(usize::from)).1
     });
     partition.row_cuts = Some(rows.collect());
     Ok(Some(Floor { cost, partition }))

@@ -25,9 +25,9 @@ impl Partition {
     /// first routed axis may cut its own columns, searched the same way, and
     /// also from the family's exact floor ([`floor::floor`], which leaves out
     /// forwarding); the nodes' dimension-order routing still needs nothing
-    /// but their own box. Rows are cut along the driving axis exactly ([`row_cuts`]). From the
-    /// true cost map this is an oracle; from a preview render's, a start the
-    /// host can afford. Its boundaries line up at least as far as `most`
+    /// but their own box. Rows are cut along the driving axis exactly
+    /// ([`row_cuts`]). From the true cost map this is an oracle; from a
+    /// preview render's, a start the host can afford. Its boundaries line up at least as far as `most`
     /// allows (the nodes' pools size for the forwarding that staggered
     /// boundaries bring).
     pub fn fitted(
@@ -285,6 +285,17 @@ impl Partition {
         (0..self.len() / parts).map(|row| self.row_profile(map, row).layers.iter().sum()).collect()
     }
 
+    /// The cubes along `axis` (one across the driving axis) that row `row`
+    /// (in [`Self::row_of`] order) spans.
+    pub fn row_span(&self, row: usize, axis: usize) -> (u16, u16) {
+        let [a0, a1] = self.row_axes();
+        let mut node = [0u16; 3];
+        node[a0] = (row % usize::from(self.array[a0])) as u16;
+        node[a1] = (row / usize::from(self.array[a0])) as u16;
+        let cuts = self.cuts_at(axis, node);
+        (cuts[usize::from(node[axis])], cuts[usize::from(node[axis]) + 1])
+    }
+
     /// One row of nodes (in [`Self::row_of`] order) as the map sees it, with
     /// the planes across the driving axis whole: per layer of cubes across
     /// the driving axis, its cubes and its crossings of the row's side faces;
@@ -293,16 +304,9 @@ impl Partition {
     fn row_profile(&self, map: &CostMap, row: usize) -> RowProfile {
         let d = usize::from(self.driving_axis);
         let [a0, a1] = self.row_axes();
-        let mut node = [0u16; 3];
-        node[a0] = (row % usize::from(self.array[a0])) as u16;
-        node[a1] = (row / usize::from(self.array[a0])) as u16;
         let n = usize::from(map.grid[d]);
         let (mut layers, mut planes) = (vec![0u64; n], vec![0u64; n + 1]);
-        let span = |a: usize| {
-            let cuts = self.cuts_at(a, node);
-            (cuts[usize::from(node[a])], cuts[usize::from(node[a]) + 1])
-        };
-        let ((lo0, hi0), (lo1, hi1)) = (span(a0), span(a1));
+        let ((lo0, hi0), (lo1, hi1)) = (self.row_span(row, a0), self.row_span(row, a1));
         let at = |c0: u16, c1: u16, k: usize| {
             let mut cell = [0i32; 3];
             (cell[a0], cell[a1], cell[d]) = (i32::from(c0), i32::from(c1), k as i32);
