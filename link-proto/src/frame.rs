@@ -123,6 +123,59 @@ impl FrameDecoder {
         }
     }
 
+    /// Consumes bytes from the front of `bytes` up to the first result: a
+    /// frame a delimiter closes, or an overflow. `None` once every byte is
+    /// consumed without one. Called until `None`, it gives the same results,
+    /// in the same order, as [`Self::push`] byte by byte.
+    ///
+    /// Bytes between delimiters are copied as a block: on a Cortex-M3 this
+    /// costs a fraction of pushing them one by one, where every byte returns
+    /// an `Option` as large as a frame.
+    pub fn decode(&mut self, bytes: &mut &[u8]) -> Option<Result<Frame, DecodeError>> {
+        while !bytes.is_empty() {
+            let (run, closed, rest) = match bytes.iter().position(|&b| b == 0) {
+                Some(at) => {
+                    (bytes.get(..at).unwrap_or_default(), true, bytes.get(at + 1..).unwrap_or_default())
+                }
+                None => (*bytes, false, &[][..]),
+            };
+            *bytes = rest;
+            let overflow = self.extend(run);
+            if overflow.is_some() {
+                // The delimiter, if any, ends the frame being discarded.
+                if closed {
+                    self.close();
+                }
+                return overflow;
+            }
+            if closed && let Some(result) = self.close() {
+                return Some(result);
+            }
+        }
+        None
+    }
+
+    /// Appends a run of non-zero bytes; an `Oversize` error when it
+    /// overflows the buffer (then the frame's bytes are dropped up to its
+    /// delimiter).
+    fn extend(&mut self, run: &[u8]) -> Option<Result<Frame, DecodeError>> {
+        if self.discarding || run.is_empty() {
+            return None;
+        }
+        match self.buf.get_mut(self.len..self.len + run.len()) {
+            Some(dst) => {
+                dst.copy_from_slice(run);
+                self.len += run.len();
+                None
+            }
+            None => {
+                self.discarding = true;
+                self.len = 0;
+                Some(Err(DecodeError::Oversize))
+            }
+        }
+    }
+
     /// Drops any partial frame, as after a link reset.
     pub fn reset(&mut self) {
         self.len = 0;

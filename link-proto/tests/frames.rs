@@ -235,6 +235,47 @@ proptest! {
     }
 }
 
+/// Streams of frames, garbage, cut frames and over-long runs, in any order.
+fn arb_stream() -> impl Strategy<Value = Vec<u8>> {
+    let piece = prop_oneof![
+        arb_frame().prop_map(|f| encode(&f)),
+        proptest::collection::vec(any::<u8>(), 0..40),
+        proptest::collection::vec(1u8..=255, MAX_FRAME_LEN - 2..MAX_FRAME_LEN + 3),
+        (arb_frame(), any::<prop::sample::Index>()).prop_map(|(f, cut)| {
+            let bytes = encode(&f);
+            bytes[..cut.index(bytes.len())].to_vec()
+        }),
+    ];
+    proptest::collection::vec(piece, 0..8).prop_map(|pieces| pieces.concat())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    /// Runs fed to `decode`, however they are cut, give what `push` gives byte by byte.
+    #[test]
+    fn decoding_runs_matches_pushing_bytes(
+        stream in arb_stream(),
+        cuts in proptest::collection::vec(any::<prop::sample::Index>(), 0..6),
+    ) {
+        let expected = decode_all(&mut FrameDecoder::new(), &stream);
+        let mut at: Vec<usize> = cuts.iter().map(|c| c.index(stream.len() + 1)).collect();
+        at.push(0);
+        at.push(stream.len());
+        at.sort_unstable();
+        let mut dec = FrameDecoder::new();
+        let mut got = Vec::new();
+        for pair in at.windows(2) {
+            let mut run = &stream[pair[0]..pair[1]];
+            while let Some(result) = dec.decode(&mut run) {
+                got.push(result);
+            }
+            prop_assert!(run.is_empty());
+        }
+        prop_assert_eq!(got, expected);
+    }
+}
+
 #[test]
 fn oversize_is_reported_once_then_resyncs() {
     let mut dec = FrameDecoder::new();

@@ -162,14 +162,17 @@ impl<const W: usize> Channel<W> {
     /// returns false when it cannot take one: that frame is then not
     /// acknowledged, and the sender sends it again later.
     pub fn receive(&mut self, bytes: &[u8], mut deliver: impl FnMut(Message) -> bool) {
-        for &b in bytes {
-            match self.decoder.push(b) {
-                None => {}
-                Some(Err(
-                    DecodeError::Oversize | DecodeError::Cobs | DecodeError::Short | DecodeError::Crc,
-                ))
-                | Some(Err(DecodeError::Body)) => self.stats.corrupted += 1,
-                Some(Ok(frame)) => self.take(frame, &mut deliver),
+        let mut rest = bytes;
+        while let Some(result) = self.decoder.decode(&mut rest) {
+            match result {
+                Err(
+                    DecodeError::Oversize
+                    | DecodeError::Cobs
+                    | DecodeError::Short
+                    | DecodeError::Crc
+                    | DecodeError::Body,
+                ) => self.stats.corrupted += 1,
+                Ok(frame) => self.take(frame, &mut deliver),
             }
         }
     }

@@ -33,9 +33,9 @@ impl Default for CostModel {
     /// the children it spawns later); an initial
     /// ray (pixel line, ray, entry cube) 3 231.8. Messages through a reliable
     /// channel: one end of a hop (the ray, the reply carrying the ray's ack,
-    /// the reply's ack in a frame of its own) 4 082.0, and of a ray reply with
-    /// its ack alone 1 238.6, which stands for every short message; a ray end
-    /// is charged the difference, 2 843 (the UART's bytes are the link
+    /// the reply's ack in a frame of its own) 3 783.7, and of a ray reply with
+    /// its ack alone 1 232.3, which stands for every short message; a ray end
+    /// is charged the difference, 2 551 (the UART's bytes are the link
     /// model's). A sender that has more for the neighbour sends the reply's
     /// ack on it, so real hops cost up to a short frame less.
     fn default() -> Self {
@@ -45,8 +45,8 @@ impl Default for CostModel {
             trace: 768,
             shade: 7_758,
             create: 3_232,
-            ray_message: 2_843,
-            short_message: 1_239,
+            ray_message: 2_551,
+            short_message: 1_232,
         }
     }
 }
