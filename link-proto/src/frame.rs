@@ -101,32 +101,14 @@ impl FrameDecoder {
     }
 
     /// Feeds one byte. Returns a result each time a delimiter closes a non-empty frame.
-    #[inline]
     pub fn push(&mut self, byte: u8) -> Option<Result<Frame, DecodeError>> {
-        if byte == 0 {
-            return self.close();
-        }
-        if self.discarding {
-            return None;
-        }
-        match self.buf.get_mut(self.len) {
-            Some(slot) => {
-                *slot = byte;
-                self.len += 1;
-                None
-            }
-            None => {
-                self.discarding = true;
-                self.len = 0;
-                Some(Err(DecodeError::Oversize))
-            }
-        }
+        self.decode(&mut &[byte][..])
     }
 
     /// Consumes bytes from the front of `bytes` up to the first result: a
     /// frame a delimiter closes, or an overflow. `None` once every byte is
-    /// consumed without one. Called until `None`, it gives the same results,
-    /// in the same order, as [`Self::push`] byte by byte.
+    /// consumed without one. However the bytes are cut into calls, the
+    /// results are the same.
     ///
     /// Bytes between delimiters are copied as a block: on a Cortex-M3 this
     /// costs a fraction of pushing them one by one, where every byte returns

@@ -252,16 +252,33 @@ fn arb_stream() -> impl Strategy<Value = Vec<u8>> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(2000))]
 
-    /// Runs fed to `decode`, however they are cut, give what `push` gives byte by byte.
+    /// Runs fed to `decode`, however they are cut (single bytes included),
+    /// give one result per delimited segment: `Oversize` for one longer than
+    /// the buffer (even unterminated), else the frame it holds, as decoded
+    /// whole.
     #[test]
-    fn decoding_runs_matches_pushing_bytes(
+    fn decoding_runs_gives_one_result_per_segment(
         stream in arb_stream(),
         cuts in proptest::collection::vec(any::<prop::sample::Index>(), 0..6),
+        bytewise in any::<bool>(),
     ) {
-        let expected = decode_all(&mut FrameDecoder::new(), &stream);
-        let mut at: Vec<usize> = cuts.iter().map(|c| c.index(stream.len() + 1)).collect();
-        at.push(0);
-        at.push(stream.len());
+        let segments: Vec<&[u8]> = stream.split(|&b| b == 0).collect();
+        let last = segments.len() - 1;
+        let mut expected = Vec::new();
+        for (i, seg) in segments.iter().enumerate() {
+            if seg.len() > MAX_FRAME_LEN {
+                expected.push(Err(DecodeError::Oversize));
+            } else if i < last && !seg.is_empty() {
+                let whole = [*seg, &[0][..]].concat();
+                let mut run = &whole[..];
+                expected.push(FrameDecoder::new().decode(&mut run).unwrap());
+            }
+        }
+        let mut at: Vec<usize> = if bytewise {
+            (0..=stream.len()).collect()
+        } else {
+            cuts.iter().map(|c| c.index(stream.len() + 1)).chain([0, stream.len()]).collect()
+        };
         at.sort_unstable();
         let mut dec = FrameDecoder::new();
         let mut got = Vec::new();
