@@ -9,6 +9,9 @@
 //!   a node's mean share of the cubes;
 //! - `entry layer`: a row's first layer of cubes along the view axis (which
 //!   no cut can split) against a node's mean share of the cubes;
+//! - `busiest row`, `busiest in row`: on the floor's partition, the row of
+//!   nodes with the most work against the mean row, and the busiest node
+//!   against its row's mean node;
 //! - `half create`: the floor and its ratio with initial rays at half cost.
 //!
 //! `cargo run --release -p host-tool --example floor_sensitivity [SEED]`
@@ -38,7 +41,7 @@ fn run() -> Result<(), HostError> {
         None => 1986,
     };
     println!(
-        "array,spheres,volume_ratio,floor/mean,no crossings,entry layer,half create floor change,half create floor/mean"
+        "array,spheres,volume_ratio,floor/mean,no crossings,entry layer,busiest row,busiest in row,half create floor change,half create floor/mean"
     );
     for count in [1000, 2000] {
         for n in [4u16, 8] {
@@ -63,6 +66,7 @@ fn row(scene: &Scene, n: u16) -> Result<String, HostError> {
     let axis = view_axis(scene);
     let map = with_rays(model.create)?;
     let (full, full_ratio) = floor_ratio(&map, n, axis)?;
+    let (row, in_row) = granularity(&map, n, axis)?;
     let mut bare = map.clone();
     for faces in bare.up.iter_mut().chain(bare.down.iter_mut()) {
         faces.iter_mut().for_each(|f| *f = 0);
@@ -70,7 +74,7 @@ fn row(scene: &Scene, n: u16) -> Result<String, HostError> {
     let (_, bare_ratio) = floor_ratio(&bare, n, axis)?;
     let (half, half_ratio) = floor_ratio(&with_rays(model.create / 2)?, n, axis)?;
     Ok(format!(
-        "{full_ratio:.3},{bare_ratio:.3},{:.3},{:+.1}%,{half_ratio:.3}",
+        "{full_ratio:.3},{bare_ratio:.3},{:.3},{row:.3},{in_row:.3},{:+.1}%,{half_ratio:.3}",
         entry_layer(&map, n, axis, scene.camera().eye),
         100.0 * (half as f64 / full as f64 - 1.0)
     ))
@@ -78,10 +82,30 @@ fn row(scene: &Scene, n: u16) -> Result<String, HostError> {
 
 /// The floor along `axis`, and it against its partition's mean node.
 fn floor_ratio(map: &CostMap, n: u16, axis: u8) -> Result<(u64, f64), HostError> {
-    let f = floor(map, [n; 3], axis)?.ok_or_else(|| input("grid too large to table"))?;
+    let f = table(map, n, axis)?;
     let costs = f.partition.node_costs(map);
     let mean = costs.iter().sum::<u64>() as f64 / costs.len().max(1) as f64;
     Ok((f.cost, f.cost as f64 / mean))
+}
+
+fn table(map: &CostMap, n: u16, axis: u8) -> Result<host_tool::fit::floor::Floor, HostError> {
+    floor(map, [n; 3], axis)?.ok_or_else(|| input("grid too large to table"))
+}
+
+/// On the floor's partition: the busiest row's work against the mean row's,
+/// and the busiest node's against its row's mean node.
+fn granularity(map: &CostMap, n: u16, axis: u8) -> Result<(f64, f64), HostError> {
+    let p = table(map, n, axis)?.partition;
+    let costs = p.node_costs(map);
+    let mut rows = vec![0u64; costs.len() / usize::from(n)];
+    for (id, &c) in costs.iter().enumerate() {
+        rows[p.row_of(p.coord(id))] += c;
+    }
+    let mean_row = rows.iter().sum::<u64>() as f64 / rows.len().max(1) as f64;
+    let busiest_row = rows.iter().copied().max().unwrap_or(0) as f64;
+    let busiest = (0..costs.len()).max_by_key(|&id| costs[id]).unwrap_or(0);
+    let its_row = rows[p.row_of(p.coord(busiest))] as f64 / f64::from(n);
+    Ok((busiest_row / mean_row, costs[busiest] as f64 / its_row))
 }
 
 /// The layer of cubes toward the eye (where rays enter), per row of nodes,
