@@ -65,47 +65,54 @@ fn row(scene: &Scene, n: u16) -> Result<String, HostError> {
     };
     let axis = view_axis(scene);
     let map = with_rays(model.create)?;
-    let (full, full_ratio) = floor_ratio(&map, n, axis)?;
-    let (row, in_row) = granularity(&map, n, axis)?;
+    let full = floor_stats(&map, n, axis)?;
     let mut bare = map.clone();
     for faces in bare.up.iter_mut().chain(bare.down.iter_mut()) {
         faces.iter_mut().for_each(|f| *f = 0);
     }
-    let (_, bare_ratio) = floor_ratio(&bare, n, axis)?;
-    let (half, half_ratio) = floor_ratio(&with_rays(model.create / 2)?, n, axis)?;
+    let bare = floor_stats(&bare, n, axis)?;
+    let half = floor_stats(&with_rays(model.create / 2)?, n, axis)?;
     Ok(format!(
-        "{full_ratio:.3},{bare_ratio:.3},{:.3},{row:.3},{in_row:.3},{:+.1}%,{half_ratio:.3}",
+        "{:.3},{:.3},{:.3},{:.3},{:.3},{:+.1}%,{:.3}",
+        full.ratio,
+        bare.ratio,
         entry_layer(&map, n, axis, scene.camera().eye),
-        100.0 * (half as f64 / full as f64 - 1.0)
+        full.busiest_row,
+        full.busiest_in_row,
+        100.0 * (half.cost as f64 / full.cost as f64 - 1.0),
+        half.ratio
     ))
 }
 
-/// The floor along `axis`, and it against its partition's mean node.
-fn floor_ratio(map: &CostMap, n: u16, axis: u8) -> Result<(u64, f64), HostError> {
-    let f = table(map, n, axis)?;
-    let costs = f.partition.node_costs(map);
-    let mean = costs.iter().sum::<u64>() as f64 / costs.len().max(1) as f64;
-    Ok((f.cost, f.cost as f64 / mean))
+/// The floor along an axis, and how its own partition's work lies.
+struct FloorStats {
+    /// The floor: the least busiest node of the family.
+    cost: u64,
+    /// The floor against its partition's mean node.
+    ratio: f64,
+    /// The busiest row of nodes' work against the mean row's.
+    busiest_row: f64,
+    /// The busiest node's work against its row's mean node.
+    busiest_in_row: f64,
 }
 
-fn table(map: &CostMap, n: u16, axis: u8) -> Result<host_tool::fit::floor::Floor, HostError> {
-    floor(map, [n; 3], axis)?.ok_or_else(|| input("grid too large to table"))
-}
-
-/// On the floor's partition: the busiest row's work against the mean row's,
-/// and the busiest node's against its row's mean node.
-fn granularity(map: &CostMap, n: u16, axis: u8) -> Result<(f64, f64), HostError> {
-    let p = table(map, n, axis)?.partition;
+fn floor_stats(map: &CostMap, n: u16, axis: u8) -> Result<FloorStats, HostError> {
+    let f = floor(map, [n; 3], axis)?.ok_or_else(|| input("grid too large to table"))?;
+    let p = &f.partition;
     let costs = p.node_costs(map);
     let mut rows = vec![0u64; costs.len() / usize::from(n)];
     for (id, &c) in costs.iter().enumerate() {
         rows[p.row_of(p.coord(id))] += c;
     }
-    let mean_row = rows.iter().sum::<u64>() as f64 / rows.len().max(1) as f64;
-    let busiest_row = rows.iter().copied().max().unwrap_or(0) as f64;
+    let mean = |v: &[u64]| v.iter().sum::<u64>() as f64 / v.len().max(1) as f64;
     let busiest = (0..costs.len()).max_by_key(|&id| costs[id]).unwrap_or(0);
     let its_row = rows[p.row_of(p.coord(busiest))] as f64 / f64::from(n);
-    Ok((busiest_row / mean_row, costs[busiest] as f64 / its_row))
+    Ok(FloorStats {
+        cost: f.cost,
+        ratio: f.cost as f64 / mean(&costs),
+        busiest_row: rows.iter().copied().max().unwrap_or(0) as f64 / mean(&rows),
+        busiest_in_row: costs[busiest] as f64 / its_row,
+    })
 }
 
 /// The layer of cubes toward the eye (where rays enter), per row of nodes,
@@ -119,7 +126,7 @@ fn entry_layer(map: &CostMap, n: u16, axis: u8, eye: [f64; 3]) -> f64 {
         layers[cell[d]] += map.cell(i);
         total += map.cell(i);
     }
-    let near = if eye[d] < 0.0 { layers.first() } else { layers.last() };
+    let near = if eye[d] < f64::from(map.grid[d]) / 2.0 { layers.first() } else { layers.last() };
     let entry = near.copied().unwrap_or(0);
     let rows = f64::from(n).powi(2);
     (entry as f64 / rows) / (total as f64 / f64::from(n).powi(3))
