@@ -1,0 +1,154 @@
+//! What the host broadcasts: the scene (its header, this node's assignment,
+//! the spheres that touch its box, the lights), the start of a frame, and a
+//! new session's reset.
+
+use heapless::Deque;
+use link_proto::{Assign, ErrorCode, LightMsg, RenderStart, SceneHeader, SphereMsg};
+
+use crate::cube_box::CubeBox;
+use crate::error::Error;
+use crate::geometry::{Grid, Point};
+use crate::load::{IntervalClock, LoadMeter};
+use crate::pool::class_bound;
+use crate::slide::SlideState;
+use crate::sphere::Sphere;
+
+use super::initial_rays::scatter_stride;
+use super::initial_rays::tile_pixels;
+use super::{MAX_LIGHTS, NO_HEADER, Node, Phase, Totals};
+
+impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+    /// Back to the state of a fresh start, in place (a node is too large to
+    /// build anew on a board's stack), saying hello again.
+    pub(super) fn start_over(&mut self) {
+        self.phase = Phase::Idle;
+        self.header = NO_HEADER;
+        self.grid = Grid::UNIT;
+        self.assign = None;
+        self.region.clear();
+        self.lights.clear();
+        self.spheres_seen = 0;
+        self.render = None;
+        self.cursor = 0;
+        self.pool.clear();
+        self.outstanding = [0; 6];
+        self.replies.iter_mut().for_each(Deque::clear);
+        self.refused = [false; 6];
+        self.space_due = [false; 6];
+        self.hello_due = true;
+        self.error_due = None;
+        self.load_due = None;
+        self.meter = LoadMeter::new();
+        self.totals = Totals { rays: 0, sphere_tests: 0, cube_steps: 0, refused: 0 };
+        self.balance = None;
+        self.intervals = IntervalClock::idle();
+        self.slide = SlideState::new();
+        self.control.clear();
+    }
+
+    /// A new scene: its header checked, whatever the last one left cleared.
+    pub(super) fn begin_scene(&mut self, header: SceneHeader) {
+        match Grid::new(header.grid) {
+            Ok(grid) => {
+                self.header = header;
+                self.grid = grid;
+                self.assign = None;
+                self.region.clear();
+                self.lights.clear();
+                self.spheres_seen = 0;
+                self.render = None;
+                self.pool.clear();
+                self.phase = Phase::Loading;
+            }
+            Err(e) => self.fail_with(e),
+        }
+    }
+
+    /// This node's place in the array and its box of the grid.
+    pub(super) fn take_assignment(&mut self, a: Assign) {
+        if self.phase != Phase::Loading || a.driving_axis > 2 {
+            return self.fail(ErrorCode::Unexpected, 0, 0);
+        }
+        let Some(id) = crate::wiring::index_of(a.coord, a.array) else {
+            return self.fail(ErrorCode::Unexpected, 0, 1);
+        };
+        match self.region.assign(self.grid, CubeBox { lo: a.lo, hi: a.hi }) {
+            Ok(()) => {
+                // A board learns which node it is from its assignment.
+                self.id = id;
+                self.assign = Some(a);
+            }
+            Err(e) => self.fail_with(e),
+        }
+    }
+
+    /// A broadcast sphere: kept if it touches the box, counted either way.
+    pub(super) fn take_sphere(&mut self, s: SphereMsg) {
+        if self.phase != Phase::Loading || self.assign.is_none() {
+            return self.fail(ErrorCode::Unexpected, 0, 0);
+        }
+        self.spheres_seen += 1;
+        let sphere = Sphere::from_msg(&s, &self.grid);
+        let sphere = sphere.and_then(|s| {
+            if s.within(&self.grid) { Ok(s) } else { Err(Error::OutOfRange(crate::error::Field::Center)) }
+        });
+        match sphere.map(|sphere| self.region.insert(sphere)) {
+            Ok(Ok(_)) => {}
+            Ok(Err(rejected)) => self.fail_with(rejected.error),
+            Err(e) => self.fail_with(e),
+        }
+    }
+
+    /// A light; every node holds them all.
+    pub(super) fn take_light(&mut self, l: LightMsg) {
+        if self.phase != Phase::Loading {
+            return self.fail(ErrorCode::Unexpected, 0, 0);
+        }
+        if Point::from_bits(l.position).is_err() {
+            return self.fail(ErrorCode::OutOfRange, crate::error::Field::Origin as u32, 0);
+        }
+        if self.lights.push(l).is_err() {
+            self.fail(ErrorCode::OutOfRange, MAX_LIGHTS as u32, 0);
+        }
+    }
+
+    /// The scene is complete if the counts match what arrived.
+    pub(super) fn end_scene(&mut self, spheres: u32, lights: u8) {
+        if self.phase != Phase::Loading || self.assign.is_none() {
+            return self.fail(ErrorCode::Unexpected, 0, 0);
+        }
+        if spheres != self.spheres_seen {
+            return self.fail(ErrorCode::SceneCount, spheres, self.spheres_seen);
+        }
+        if usize::from(lights) != self.lights.len() {
+            return self.fail(ErrorCode::SceneCount, u32::from(lights), self.lights.len() as u32);
+        }
+        self.phase = Phase::Loaded;
+    }
+
+    /// A frame: the pool sized by class levels, the tile, the balancing.
+    pub(super) fn start_render(&mut self, r: RenderStart) {
+        let Some(assign) = self.assign.filter(|_| self.phase == Phase::Loaded) else {
+            return self.fail(ErrorCode::Unexpected, 0, 0);
+        };
+        let boundaries = assign.boundaries.when_sliding(r.balance.is_some());
+        let top =
+            class_bound(assign.array, self.header.max_depth, usize::from(assign.driving_axis), boundaries);
+        if let Err(e) = self.pool.configure(top, r.level_depth, r.shared_slots) {
+            return self.fail(ErrorCode::PoolCapacity, e.capacity, e.needed);
+        }
+        self.render = Some(r);
+        self.cursor = 0;
+        self.stride = scatter_stride(tile_pixels(&r.tile));
+        self.outstanding = [0; 6];
+        self.totals = Totals::default();
+        let now = self.meter.last();
+        self.meter.restart(now);
+        self.balance = r.balance;
+        self.intervals = r.balance.map_or(IntervalClock::idle(), |b| IntervalClock::new(now, b.interval));
+        self.slide = SlideState::new();
+        self.phase = Phase::Rendering;
+        // Neighbours refused while we were loading may send now.
+        self.slot_freed();
+    }
+}

@@ -1,0 +1,359 @@
+//! The node: a sans-IO state machine over [`Links`].
+//!
+//! The caller passes the time and the links in ([`Node::poll`]); the node never
+//! reads a clock, so the in-memory board, emulated boards and real boards all
+//! run this same code, and tests are deterministic.
+//!
+//! Conversation: the host sends `SceneBegin`, `Assign`, every `Sphere` and
+//! `Light`, `SceneEnd`, then `RenderStart`. The node creates the initial rays of
+//! its tile, traces rays through its subregion, passes rays on to neighbours
+//! with their exact state, shades hits, and retires finished rays to the host
+//! with their pixel contribution and credit. `Finish` ends the frame; the node
+//! answers with its load report.
+//!
+//! **Passing a ray on** never blocks a receiver: a node always takes a ray off
+//! the link and admits it into its pool or refuses it ([`RayReply`]). The sender
+//! keeps the ray until it is admitted and retries after the receiver's
+//! [`Message::Space`]. With the class-levelled pool ([`crate::pool`]) this is
+//! deadlock-free and loses nothing, whatever the queue depths.
+//!
+//! One file per part of the conversation: `broadcast` (scene, assignment,
+//! frame start), `initial_rays`, `trace` and `shade` (the work),
+//! `passing` (rays between neighbours, with back-pressure), `balance`
+//! (loads and the slide decision), `slab` (the exchange a slide makes) and
+//! `transmit` (what goes out each poll).
+
+use heapless::{Deque, Vec};
+use link_proto::{
+    Assign, Balance, Capacity, ErrorCode, ErrorReport, LightMsg, Message, PROTOCOL_VERSION, RayMsg, RayReply,
+    RenderStart, Retire, SceneHeader,
+};
+
+use crate::error::Error;
+use crate::geometry::Grid;
+use crate::link::{Links, Port};
+use crate::load::{IntervalClock, LoadMeter};
+use crate::pool::RayPool;
+use crate::slide::SlideState;
+use crate::subregion::Subregion;
+
+mod balance;
+mod broadcast;
+mod initial_rays;
+mod passing;
+mod shade;
+mod slab;
+mod trace;
+mod transmit;
+
+pub use initial_rays::scatter_stride;
+
+/// Lights a node holds.
+pub const MAX_LIGHTS: usize = 8;
+/// A hit's evaluated child rays, each with its candidate number.
+type Children = Vec<(u8, RayMsg), { MAX_LIGHTS + 1 }>;
+/// Rays a node may have sent to one neighbour without a reply yet.
+pub const MAX_OUTSTANDING: usize = 4;
+
+/// Work done in one [`Node::poll`], for a cost model or a profiler.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Work {
+    /// Unit-cube steps.
+    pub cube_steps: u32,
+    /// Ray/sphere tests.
+    pub sphere_tests: u32,
+    /// Ray walks through the subregion.
+    pub traces: u32,
+    /// Hits shaded (children evaluated).
+    pub shades: u32,
+    /// Initial rays created.
+    pub created: u32,
+    /// Messages received.
+    pub received: u32,
+    /// Messages sent.
+    pub sent: u32,
+    /// Of the messages received, rays (long messages; the rest are short).
+    pub rays_received: u32,
+    /// Of the messages sent, rays.
+    pub rays_sent: u32,
+}
+
+impl Work {
+    /// Whether anything was done.
+    pub fn is_busy(&self) -> bool {
+        *self != Work::default()
+    }
+}
+
+/// Totals of the current frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Totals {
+    /// Rays traced (walks through this subregion).
+    pub rays: u32,
+    /// Ray/sphere tests.
+    pub sphere_tests: u32,
+    /// Cube steps.
+    pub cube_steps: u32,
+    /// Rays refused for want of a pool slot.
+    pub refused: u32,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    /// Waiting for a scene.
+    Idle,
+    /// Receiving a scene.
+    Loading,
+    /// Scene loaded, waiting for `RenderStart`.
+    Loaded,
+    /// Rendering a frame.
+    Rendering,
+    /// Stopped after reporting an error.
+    Failed,
+}
+
+/// A node with `S` spheres, `R` sphere references, `C` cubes and `P` ray slots.
+pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> {
+    id: u16,
+    phase: Phase,
+    header: SceneHeader,
+    grid: Grid,
+    assign: Option<Assign>,
+    region: Subregion<S, R, C>,
+    lights: Vec<LightMsg, MAX_LIGHTS>,
+    spheres_seen: u32,
+    render: Option<RenderStart>,
+    cursor: u32,
+    /// Step through the tile's pixels (see [`scatter_stride`]).
+    stride: u32,
+    pool: RayPool<P>,
+    outstanding: [u8; 6],
+    replies: [Deque<RayReply, MAX_OUTSTANDING>; 6],
+    refused: [bool; 6],
+    space_due: [bool; 6],
+    hello_due: bool,
+    error_due: Option<ErrorReport>,
+    load_due: Option<u32>,
+    meter: LoadMeter,
+    totals: Totals,
+    balance: Option<Balance>,
+    intervals: IntervalClock,
+    slide: SlideState,
+    /// Small control messages (loads, slide replies, notices) waiting for room.
+    control: Deque<(Port, Message), 16>,
+}
+
+/// Interval of the final load report sent after `Finish`.
+pub const FINAL_INTERVAL: u32 = u32::MAX;
+
+const NO_HEADER: SceneHeader =
+    SceneHeader { grid: [1; 3], ambient: [0; 3], background: [0; 3], max_depth: 0 };
+
+impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+    /// A node with index `id` (row-major over the array), waiting for a scene.
+    pub const fn new(id: u16) -> Self {
+        Self {
+            id,
+            phase: Phase::Idle,
+            header: NO_HEADER,
+            grid: Grid::UNIT,
+            assign: None,
+            region: Subregion::new(),
+            lights: Vec::new(),
+            spheres_seen: 0,
+            render: None,
+            cursor: 0,
+            stride: 1,
+            pool: RayPool::new(),
+            outstanding: [0; 6],
+            replies: [const { Deque::new() }; 6],
+            refused: [false; 6],
+            space_due: [false; 6],
+            hello_due: true,
+            error_due: None,
+            load_due: None,
+            meter: LoadMeter::new(),
+            totals: Totals { rays: 0, sphere_tests: 0, cube_steps: 0, refused: 0 },
+            balance: None,
+            intervals: IntervalClock::idle(),
+            slide: SlideState::new(),
+            control: Deque::new(),
+        }
+    }
+
+    /// The capacities this node was built with.
+    pub const fn capacity() -> Capacity {
+        Capacity { spheres: S as u32, refs: R as u32, cubes: C as u32, rays: P as u16 }
+    }
+
+    /// Node index.
+    pub fn id(&self) -> u16 {
+        self.id
+    }
+
+    /// The assignment taken from the host, once one arrived.
+    pub fn assignment(&self) -> Option<Assign> {
+        self.assign
+    }
+
+    /// The subregion (for inspection and tests).
+    pub fn region(&self) -> &Subregion<S, R, C> {
+        &self.region
+    }
+
+    /// Running and waiting time of the current frame.
+    pub fn meter(&self) -> LoadMeter {
+        self.meter
+    }
+
+    /// Work totals of the current frame.
+    pub fn totals(&self) -> Totals {
+        self.totals
+    }
+
+    /// Whether the node stopped after an error.
+    pub fn failed(&self) -> bool {
+        self.phase == Phase::Failed
+    }
+
+    /// Whether the node holds anything to do or send: rays, initial rays not yet
+    /// created, replies, notices or reports. An idle node only waits for input.
+    pub fn pending(&self) -> bool {
+        !self.pool.is_empty()
+            || self.creation_left()
+            || self.hello_due
+            || self.error_due.is_some()
+            || self.load_due.is_some()
+            || self.space_due.iter().any(|&s| s)
+            || self.replies.iter().any(|q| !q.is_empty())
+            || !self.control.is_empty()
+            || [self.slide.outgoing.lo, self.slide.outgoing.hi].iter().flatten().any(|o| !o.done)
+    }
+
+    /// Tells the node it sat idle from `now` on (its last poll found nothing
+    /// more to do): the time until the next poll is waiting, not running. A
+    /// board that sleeps until input need not call it, since it polls once
+    /// more before sleeping; a simulator that skips that poll must.
+    pub fn idle(&mut self, now: u64) {
+        if !self.pending() {
+            self.meter.tick(now);
+            self.meter.set_busy(false);
+        }
+    }
+
+    /// Handles what has arrived, does one unit of work, and sends what it can.
+    /// `now` is the caller's clock; it only splits time into running and waiting.
+    pub fn poll<L: Links>(&mut self, now: u64, links: &mut L) -> Work {
+        self.meter.tick(now);
+        let mut work = Work::default();
+        self.receive(links, &mut work);
+        if self.phase == Phase::Rendering {
+            self.balance_tick(now);
+            self.compute(&mut work);
+        }
+        self.transmit(links, &mut work);
+        self.meter.set_busy(work.is_busy());
+        work
+    }
+
+    /// Takes everything that arrived on every port.
+    fn receive<L: Links>(&mut self, links: &mut L, work: &mut Work) {
+        while let Some(port) = links.peer_restarted() {
+            match port {
+                // A new host session: whatever the old one set up is moot.
+                Port::Host => self.start_over(),
+                _ => self.fail(ErrorCode::PeerRestarted, port as u32, 0),
+            }
+        }
+        for port in Port::ALL {
+            while let Some(msg) = links.recv(port) {
+                work.received += 1;
+                if matches!(msg, Message::Ray(_)) {
+                    work.rays_received += 1;
+                }
+                if self.phase != Phase::Failed {
+                    self.handle(port, msg);
+                }
+            }
+        }
+    }
+
+    /// Stops the node, reporting the first error to the host.
+    fn fail(&mut self, code: ErrorCode, a: u32, b: u32) {
+        if self.phase != Phase::Failed {
+            self.error_due = Some(ErrorReport { node: self.id, code, a, b });
+            self.phase = Phase::Failed;
+        }
+    }
+
+    /// [`Self::fail`] with an [`Error`] value.
+    fn fail_with(&mut self, error: Error) {
+        let r = error.report(self.id);
+        self.fail(r.code, r.a, r.b);
+    }
+
+    /// Dispatches one message by its port and kind.
+    fn handle(&mut self, port: Port, msg: Message) {
+        match (port, msg) {
+            (_, Message::Hello(h)) if h.version != PROTOCOL_VERSION => {
+                self.fail(ErrorCode::Version, u32::from(h.version), u32::from(PROTOCOL_VERSION))
+            }
+            (_, Message::Hello(_)) => {}
+            (Port::Host, Message::SceneBegin(header)) => self.begin_scene(header),
+            (Port::Host, Message::Assign(a)) => self.take_assignment(a),
+            (Port::Host, Message::Sphere(s)) => self.take_sphere(s),
+            (Port::Host, Message::Light(l)) => self.take_light(l),
+            (Port::Host, Message::SceneEnd(end)) => self.end_scene(end.spheres, end.lights),
+            (Port::Host, Message::RenderStart(r)) => self.start_render(r),
+            (Port::Host, Message::Finish(_)) => self.load_due = Some(FINAL_INTERVAL),
+            (p, Message::Ray(ray)) if p != Port::Host => self.admit_ray(p, ray),
+            (
+                p,
+                m @ (Message::Load(_)
+                | Message::SlideRequest(_)
+                | Message::SlideOffer(_)
+                | Message::Sphere(_)
+                | Message::SlideDone(_)
+                | Message::SlideReply(_)),
+            ) if p != Port::Host => match self.side_of(p) {
+                Some(side) => self.handle_slide(p, side, m),
+                None => self.fail(ErrorCode::Unexpected, port as u32, 3),
+            },
+            (p, Message::RayReply(r)) if p != Port::Host => self.take_reply(p, r),
+            (p, Message::Space) if p != Port::Host => self.retry_refused(p),
+            (port, msg) => self.fail(ErrorCode::Unexpected, port as u32, 100 + kind(&msg)),
+        }
+    }
+}
+
+/// A message's variant, for error reports (`b = 100 + kind`).
+fn kind(msg: &Message) -> u32 {
+    match msg {
+        Message::Hello(_) => 0,
+        Message::SceneBegin(_) => 1,
+        Message::Sphere(_) => 2,
+        Message::Light(_) => 3,
+        Message::SceneEnd(_) => 4,
+        Message::Assign(_) => 5,
+        Message::RenderStart(_) => 6,
+        Message::Ray(_) => 7,
+        Message::Retire(_) => 8,
+        Message::Load(_) => 9,
+        Message::SlideOffer(_) => 10,
+        Message::SlideReply(_) => 11,
+        Message::SlideDone(_) => 12,
+        Message::Finish(_) => 13,
+        Message::Error(_) => 14,
+        Message::Ack(_) => 15,
+        Message::Nak(_) => 16,
+        Message::RayReply(_) => 17,
+        Message::Space => 18,
+        Message::SlideRequest(_) => 19,
+        Message::Sync(_) => 20,
+        Message::SyncAck(_) => 21,
+    }
+}
+
+fn retire(ray: &RayMsg, rgb: [u32; 3], credit: u64, spawned: u8) -> Retire {
+    Retire { pixel: ray.pixel, rgb, credit, spawned }
+}

@@ -1,0 +1,100 @@
+//! Passing rays between neighbours: admitting or refusing what arrives,
+//! taking the replies to what was sent, and retrying refused rays when the
+//! neighbour has room again. Back-pressure, never a dropped ray.
+
+use link_proto::{ErrorCode, RayMsg, RayReply};
+
+use crate::link::Port;
+use crate::pool::Stage;
+
+use super::{Node, Phase};
+
+impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+    /// A neighbour passes a ray on: admitted to the pool or refused, and
+    /// answered either way.
+    pub(super) fn admit_ray(&mut self, port: Port, ray: RayMsg) {
+        if self.phase != Phase::Rendering {
+            // A neighbour may start before the host's RenderStart reaches us (the
+            // links are independent): refuse; our Space follows once we start.
+            return self.reply_to_ray(port, ray.tag, false);
+        }
+        if ray.class > self.pool.top() {
+            return self.fail(ErrorCode::ClassOverflow, u32::from(ray.class), u32::from(self.pool.top()));
+        }
+        let accepted = self.pool.admit(ray, Stage::Trace).is_ok();
+        // Counted with `if`, not `u32::from(bool)`: see `transmit`.
+        if !accepted {
+            self.totals.refused += 1;
+        }
+        self.reply_to_ray(port, ray.tag, accepted);
+    }
+
+    /// Queues the reply to a ray from `port`.
+    fn reply_to_ray(&mut self, port: Port, tag: u16, accepted: bool) {
+        let reply = RayReply { tag, accepted };
+        let (Some(queue), Some(refused)) =
+            (self.replies.get_mut(port.index()), self.refused.get_mut(port.index()))
+        else {
+            return;
+        };
+        *refused |= !accepted;
+        if queue.push_back(reply).is_err() {
+            // The neighbour exceeded MAX_OUTSTANDING: a protocol violation.
+            self.fail(ErrorCode::Unexpected, port as u32, 1);
+        }
+    }
+
+    /// A neighbour answered a ray we sent: forget it if admitted, hold it back if not.
+    pub(super) fn take_reply(&mut self, port: Port, reply: RayReply) {
+        let sent = self.pool.is_sent(reply.tag, port);
+        if !sent {
+            return self.fail(ErrorCode::Unexpected, port as u32, 2);
+        }
+        if let Some(n) = self.outstanding.get_mut(port.index()) {
+            *n = n.saturating_sub(1);
+        }
+        if reply.accepted {
+            self.pool.remove(reply.tag);
+            self.slot_freed();
+            // The neighbour had room: the next ray held back may have it too.
+            self.retry_refused(port);
+        } else {
+            self.pool.set_stage(reply.tag, Stage::Refused(port));
+        }
+    }
+
+    /// Sends again the one ray held back for `port` that the neighbour is
+    /// likeliest to admit: the highest class (a class-`k` ray may take any free
+    /// level up to `k`).
+    ///
+    /// One at a time, not all at once: a `Space` means one slot, so resending
+    /// every held ray mostly bought refusals (each a ray and a reply on the
+    /// link). Nothing waits for ever: while rays are held back for a port,
+    /// either one of them is in flight (its acceptance retries the next) or the
+    /// neighbour has refused us since its last `Space` (its next freed slot
+    /// sends another).
+    pub(super) fn retry_refused(&mut self, port: Port) {
+        if let Some(i) = self.pool.highest_refused(port) {
+            self.pool.set_stage(i, Stage::Outbound(port));
+        }
+    }
+
+    /// How a ray of `class` leaves through `port`: behind the rays held back
+    /// for it if one of them has at least its class (the neighbour had no
+    /// slot for that one, so none for this), else at once. A higher class must
+    /// not wait: it may take levels the held ones cannot, and holding it back
+    /// would break the class levels' guarantee of progress.
+    pub(super) fn leave_by(&self, port: Port, class: u16) -> Stage {
+        if self.pool.refused_at_least(port, class) { Stage::Refused(port) } else { Stage::Outbound(port) }
+    }
+
+    /// A slot freed: tell every neighbour we refused that it may retry.
+    pub(super) fn slot_freed(&mut self) {
+        for (refused, due) in self.refused.iter_mut().zip(self.space_due.iter_mut()) {
+            if *refused {
+                *due = true;
+                *refused = false;
+            }
+        }
+    }
+}

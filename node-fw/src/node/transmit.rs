@@ -1,0 +1,158 @@
+//! Sending: replies, notices, rays and retirements, control messages and
+//! slabs, as far as the links take them this poll.
+
+use link_proto::{ErrorCode, Hello, LoadReport, Message, PROTOCOL_VERSION};
+
+use crate::link::{Links, Port};
+use crate::pool::Stage;
+
+use super::{MAX_OUTSTANDING, Node, Work};
+
+impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+    /// Queues a control message; loads beyond half the queue are dropped (a
+    /// newer one follows), everything else always fits (at most one per side).
+    pub(super) fn queue_control(&mut self, port: Port, msg: Message) {
+        let is_load = matches!(msg, Message::Load(_));
+        if is_load && self.control.len() >= self.control.capacity() / 2 {
+            return;
+        }
+        if self.control.push_back((port, msg)).is_err() {
+            self.fail(ErrorCode::Unexpected, port as u32, 9);
+        }
+    }
+
+    /// Sends what is due, in order of urgency, as far as the links take it.
+    pub(super) fn transmit<L: Links>(&mut self, links: &mut L, work: &mut Work) {
+        let mut send = |links: &mut L, port: Port, msg: Message| {
+            let ray = matches!(msg, Message::Ray(_));
+            let ok = links.try_send(port, msg).is_ok();
+            // Not `work.sent += u32::from(ok)`: rustc 1.95 at opt-level >= 2
+            // drops the increment when the same bool is branched on after
+            // inlining (rust-lang/rust#158206, SimplifyComparisonIntegral), and
+            // release builds undercounted sends. The fuzz tests check the count.
+            if ok {
+                work.sent += 1;
+                if ray {
+                    work.rays_sent += 1;
+                }
+            }
+            ok
+        };
+        if self.hello_due {
+            let hello = Hello { version: PROTOCOL_VERSION, node: self.id, capacity: Self::capacity() };
+            self.hello_due = !send(links, Port::Host, Message::Hello(hello));
+        }
+        if let Some(e) = self.error_due
+            && send(links, Port::Host, Message::Error(e))
+        {
+            self.error_due = None;
+        }
+        for port in Port::NEIGHBOURS {
+            let p = port.index();
+            while let Some(&reply) = self.replies.get(p).and_then(|q| q.front()) {
+                if !send(links, port, Message::RayReply(reply)) {
+                    break;
+                }
+                if let Some(q) = self.replies.get_mut(p) {
+                    q.pop_front();
+                }
+            }
+            if let Some(due) = self.space_due.get_mut(p).filter(|due| **due) {
+                *due = !send(links, port, Message::Space);
+            }
+        }
+        self.send_rays(links, &mut send);
+        while let Some((port, msg)) = self.control.front().cloned() {
+            if !send(links, port, msg) {
+                break;
+            }
+            self.control.pop_front();
+        }
+        self.stream_slabs(links, &mut send);
+        if let Some(frame) = self.load_due {
+            let report = LoadReport {
+                node: self.id,
+                interval: frame,
+                running: self.meter.running,
+                waiting: self.meter.waiting,
+                rays: self.totals.rays,
+                sphere_tests: self.totals.sphere_tests,
+                cube_steps: self.totals.cube_steps,
+                refused: self.totals.refused,
+                extent: 0,
+            };
+            if send(links, Port::Host, Message::Load(report)) {
+                self.load_due = None;
+            }
+        }
+    }
+
+    /// Sends rays bound for neighbours and retirements for the host, oldest first.
+    fn send_rays<L: Links>(&mut self, links: &mut L, send: &mut impl FnMut(&mut L, Port, Message) -> bool) {
+        if !self.pool.any_leaving() {
+            return;
+        }
+        // Ports that refused a message in this pass stay full for the rest of
+        // it (room comes back only with what arrives), so nothing more is
+        // built for them: a board offered every waiting ray on every poll.
+        let mut full = [false; 7];
+        // Ports with rays for them and room so far: once none is left, the
+        // rest of the list cannot go either.
+        let mut open = Port::ALL.iter().filter(|&&p| self.pool.leaving_by(p) > 0).count();
+        // Marks a port full for the pass; whether none is left open.
+        let close = |port_full: &mut bool, open: &mut usize| {
+            *port_full = true;
+            *open = open.saturating_sub(1);
+            *open == 0
+        };
+        // Oldest first. A ray that goes drops out of the list and the next
+        // takes its place, so `n` moves on only past a ray that stays.
+        let mut n = 0;
+        while let Some(i) = self.pool.leaving_at(n) {
+            n += 1;
+            // Whether the port can take it, before the ray is copied out.
+            let Some(port) = self.pool.leaves_by(i) else { continue };
+            let waiting =
+                self.outstanding.get(port.index()).is_some_and(|&o| usize::from(o) >= MAX_OUTSTANDING);
+            let Some(port_full) = full.get_mut(port.index()).filter(|f| !**f) else { continue };
+            if waiting {
+                // Replies come back only with what arrives: full for this pass.
+                if close(port_full, &mut open) {
+                    break;
+                }
+                continue;
+            }
+            let Some(stage) = self.pool.get(i).map(|s| s.stage()) else { continue };
+            match stage {
+                Stage::Retire(r) => {
+                    if !send(links, Port::Host, Message::Retire(r)) {
+                        if close(port_full, &mut open) {
+                            break;
+                        }
+                        continue;
+                    }
+                    self.pool.remove(i);
+                    self.slot_freed();
+                    n -= 1;
+                }
+                Stage::Outbound(port) => {
+                    let Some(mut ray) = self.pool.get(i).map(|s| s.ray) else { continue };
+                    ray.class = ray.class.saturating_add(1);
+                    ray.tag = i;
+                    if !send(links, port, Message::Ray(ray)) {
+                        if close(port_full, &mut open) {
+                            break;
+                        }
+                        continue;
+                    }
+                    if let Some(out) = self.outstanding.get_mut(port.index()) {
+                        *out += 1;
+                    }
+                    self.pool.set_stage(i, Stage::Sent(port));
+                    n -= 1;
+                }
+                _ => {}
+            }
+        }
+    }
+}
