@@ -21,6 +21,7 @@ pub mod plot;
 pub mod qemu;
 pub mod reference;
 pub mod render;
+pub mod run_files;
 pub mod scene;
 pub mod serial;
 

@@ -8,11 +8,13 @@ use host_tool::backend::Backend;
 use host_tool::compare::compare;
 use host_tool::error::{HostError, input};
 use host_tool::output::{png, write_atomic};
-use host_tool::render::{Initial, Layout, RenderOptions, RenderResult, render_sim};
+use host_tool::render::{Initial, Layout, RenderOptions, render_sim};
+use host_tool::run_files::{
+    boundary_history_csv, history_plot, imbalance, load_history_csv, loads_csv, summary_json,
+};
 use host_tool::scene::Scene;
 use host_tool::{direct, reference};
 use link_proto::{Balance, SlidePolicy};
-use serde_json::json;
 
 #[derive(Parser)]
 #[command(
@@ -217,6 +219,9 @@ struct RenderArgs {
     /// Load history over virtual time (per node and interval).
     #[arg(long, value_name = "FILE.csv", default_value = "load-history.csv")]
     load_history: PathBuf,
+    /// Boundary positions over virtual time (at the start, then per committed slide).
+    #[arg(long, value_name = "FILE.csv", default_value = "boundary-history.csv")]
+    boundary_history: PathBuf,
     /// Plot of per-node load and boundary positions over virtual time.
     #[arg(long, value_name = "FILE.png", default_value = "loads.png")]
     plot: PathBuf,
@@ -379,13 +384,15 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
     let image = png(f.width, f.height, &f.rgb8())?;
     let summary = summary_json(&scene, &opts, &result);
     let loads = loads_csv(&result);
-    let history = history_csv(&result);
+    let history = load_history_csv(&result);
+    let boundaries = boundary_history_csv(&result);
     let plot = history_plot(&result)?;
     write_atomic(&args.out, &image)?;
     write_atomic(&args.plot, &plot)?;
     write_atomic(&args.loads, loads.as_bytes())?;
     write_atomic(&args.summary, summary.as_bytes())?;
     write_atomic(&args.load_history, history.as_bytes())?;
+    write_atomic(&args.boundary_history, boundaries.as_bytes())?;
     eprintln!(
         "rendered {}x{} on {}x{}x{} nodes: makespan {} {}, imbalance {:.3}, {} rays, {:.2} s -> {}",
         f.width,
@@ -493,168 +500,6 @@ fn numerics_report(out: &std::path::Path, quick: bool) -> Result<(), HostError> 
     let md = host_tool::numerics::variants::report(&scenes, size, out)?;
     print!("{md}");
     Ok(())
-}
-
-/// max / mean of the nodes' running time.
-fn imbalance(r: &RenderResult) -> f64 {
-    let busy: Vec<f64> = r.frame.loads.iter().map(|l| l.map_or(0.0, |l| l.running as f64)).collect();
-    let mean = busy.iter().sum::<f64>() / busy.len().max(1) as f64;
-    busy.iter().cloned().fold(0.0, f64::max) / mean.max(f64::MIN_POSITIVE)
-}
-
-fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String {
-    let f = &r.frame;
-    let nodes: Vec<_> = f
-        .loads
-        .iter()
-        .enumerate()
-        .map(|(id, l)| {
-            let l = l.unwrap_or(link_proto::LoadReport {
-                node: id as u16,
-                interval: 0,
-                running: 0,
-                waiting: 0,
-                rays: 0,
-                sphere_tests: 0,
-                cube_steps: 0,
-                refused: 0,
-                extent: 0,
-            });
-            let b = r.partition.bounds(id);
-            json!({
-                "id": id, "coord": r.partition.coord(id), "lo": b.lo, "hi": b.hi,
-                "running": l.running, "waiting": l.waiting, "rays": l.rays,
-                "sphere_tests": l.sphere_tests, "cube_steps": l.cube_steps, "refused": l.refused,
-                "bytes_sent": r.bytes[id].iter().sum::<u64>(),
-            })
-        })
-        .collect();
-    let v = json!({
-        "makespan": f.makespan,
-        "imbalance": imbalance(r),
-        "rays_created": f.rays_created,
-        "rays_terminated": f.rays_terminated,
-        // Each refusal cost its node a ray and a reply: see `--queue-depth`.
-        "rays_refused": f.loads.iter().flatten().map(|l| u64::from(l.refused)).sum::<u64>(),
-        "array": opts.array,
-        "grid": scene.grid,
-        "size": opts.size,
-        "spheres": scene.spheres.len(),
-        "lights": scene.lights.len(),
-        "initial_rays": opts.initial.name(),
-        "layout": opts.layout.name(),
-        "queue_depth": opts.level_depth,
-        "shared_slots": opts.shared_slots,
-        "balance": if opts.balance.is_some() { "slide" } else { "static" },
-        "driving_axis": r.partition.driving_axis,
-        "slides": f.slides.len(),
-        "refused_slides": f.refused_slides.len(),
-        "rounds": r.stats.rounds,
-        "faults": opts.sim.faults.map(|f| json!({"corrupt": f.corrupt, "drop": f.drop, "dup": f.dup, "delay": f.delay, "seed": f.seed})),
-        "retransmissions": r.links.retransmitted,
-        "corrupted_frames": r.links.corrupted,
-        "discarded_frames": r.links.discarded,
-        "wall_seconds": r.wall.as_secs_f64(),
-        "nodes": nodes,
-    });
-    serde_json::to_string_pretty(&v).unwrap_or_default()
-}
-
-fn loads_csv(r: &RenderResult) -> String {
-    let mut s =
-        String::from("node,x,y,z,running,waiting,load,rays,sphere_tests,cube_steps,refused,bytes_sent\n");
-    for (id, l) in r.frame.loads.iter().enumerate() {
-        let c = r.partition.coord(id);
-        let (run, wait, rays, tests, steps, refused) = l.map_or((0, 0, 0, 0, 0, 0), |l| {
-            (l.running, l.waiting, l.rays, l.sphere_tests, l.cube_steps, l.refused)
-        });
-        let load = if wait == 0 { f64::INFINITY } else { run as f64 / wait as f64 };
-        s += &format!(
-            "{id},{},{},{},{run},{wait},{load:.4},{rays},{tests},{steps},{refused},{}\n",
-            c[0],
-            c[1],
-            c[2],
-            r.bytes[id].iter().sum::<u64>()
-        );
-    }
-    s
-}
-
-/// Per-node load and boundary positions over virtual time.
-fn history_plot(r: &RenderResult) -> Result<Vec<u8>, HostError> {
-    use host_tool::plot::{Chart, Series, png};
-    let nodes = r.frame.loads.len();
-    let mut per_node: Vec<Vec<(f64, f64)>> = vec![Vec::new(); nodes];
-    for (at, l) in &r.frame.history {
-        let load =
-            if l.waiting == 0 { 100.0 } else { (l.running as f64 / l.waiting as f64).clamp(0.01, 100.0) };
-        if let Some(v) = per_node.get_mut(usize::from(l.node)) {
-            v.push((*at as f64, load));
-        }
-    }
-    let loads: Vec<Series> = per_node
-        .into_iter()
-        .enumerate()
-        .filter(|(_, p)| !p.is_empty())
-        .map(|(n, points)| Series { name: format!("node {n}"), points, markers: false })
-        .collect();
-    let history = host_tool::history::boundary_history(&r.partition, &r.frame.slides);
-    let mut lines: std::collections::BTreeMap<(usize, usize), Vec<(f64, f64)>> = Default::default();
-    for b in &history {
-        let line = lines.entry((b.row, b.index)).or_default();
-        if let Some(&(_, prev)) = line.last() {
-            line.push((b.time as f64, prev));
-        }
-        line.push((b.time as f64, f64::from(b.position)));
-    }
-    let end = r.frame.makespan as f64;
-    let boundaries: Vec<Series> = lines
-        .into_iter()
-        .map(|((row, index), mut points)| {
-            if let Some(&(_, last)) = points.last() {
-                points.push((end, last));
-            }
-            Series { name: format!("row {row} boundary {index}"), points, markers: false }
-        })
-        .collect();
-    let axis = ["x", "y", "z"][usize::from(r.partition.driving_axis)];
-    png(
-        &[
-            (
-                Chart {
-                    title: "Load (running / waiting) per node and interval".into(),
-                    x_label: "virtual time (cycles)".into(),
-                    y_label: "load".into(),
-                    log_x: false,
-                    log_y: true,
-                },
-                loads,
-            ),
-            (
-                Chart {
-                    title: format!("Boundary positions along the driving axis ({axis})"),
-                    x_label: "virtual time (cycles)".into(),
-                    y_label: "cube".into(),
-                    log_x: false,
-                    log_y: false,
-                },
-                boundaries,
-            ),
-        ],
-        1000,
-        420,
-    )
-}
-
-/// One row per node and interval: `time,node,interval,running,waiting,load`;
-/// then one row per committed slide: `time,node,slide,boundary`.
-fn history_csv(r: &RenderResult) -> String {
-    let mut s = String::from("time,node,interval,running,waiting,load\n");
-    for (at, l) in &r.frame.history {
-        let load = if l.waiting == 0 { f64::INFINITY } else { l.running as f64 / l.waiting as f64 };
-        s += &format!("{at},{},{},{},{},{load:.4}\n", l.node, l.interval, l.running, l.waiting);
-    }
-    s
 }
 
 fn parse_faults(s: &str) -> Result<sim_board::Faults, String> {

@@ -28,7 +28,7 @@ fn fails(name: &str, args: &[&str], scene: Option<&str>, code: i32, needle: &str
     assert_eq!(out.status.code(), Some(code), "{name}: {err}");
     assert!(err.contains(needle), "{name}: '{err}' lacks '{needle}'");
     assert_eq!(err.trim_end().lines().count(), 1, "{name}: one line, got '{err}'");
-    for f in ["render.png", "loads.csv", "summary.json"] {
+    for f in ["render.png", "loads.csv", "summary.json", "load-history.csv", "boundary-history.csv"] {
         assert!(!dir.join(f).exists(), "{name}: {f} written despite the error");
     }
 }
@@ -118,6 +118,47 @@ fn default_render_writes_image_loads_and_summary() {
     assert_eq!(csv.lines().count(), 9);
     let png = image::open(dir.join("render.png")).unwrap();
     assert_eq!((png.width(), png.height()), (32, 24));
+}
+
+/// The boundary history starts from the even cut and, under the paper's
+/// rule, records every committed slide as a move of one cube.
+#[test]
+fn a_sliding_render_writes_its_boundary_history() {
+    let scratch = scratch("slides");
+    let dir = scratch.path();
+    let args = ["render", "--size", "32x24", "--array", "2x2x2", "--spheres", "50", "--interval", "50000"];
+    let out = host_tool(dir, &args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    let csv = std::fs::read_to_string(dir.join("boundary-history.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("time,row,boundary,position"));
+    let rows: Vec<[u64; 4]> = lines
+        .map(|l| {
+            let v: Vec<u64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            [v[0], v[1], v[2], v[3]]
+        })
+        .collect();
+    // A 2x2x2 array has four lines of two nodes along the driving axis, each
+    // cut once, at first in the middle of the 32-cube grid.
+    let (start, slides): (Vec<&[u64; 4]>, Vec<&[u64; 4]>) = rows.iter().partition(|r| r[0] == 0);
+    assert_eq!(
+        start.iter().map(|r| (r[1], r[2], r[3])).collect::<Vec<_>>(),
+        [0, 1, 2, 3].map(|row| (row, 0, 16))
+    );
+    assert_eq!(Some(slides.len() as u64), summary["slides"].as_u64());
+    assert!(!slides.is_empty(), "no slide at this interval: the test checks nothing");
+    let mut at = [16u64; 4];
+    let mut time = 0;
+    for [t, row, _, position] in slides {
+        assert!(*t >= time, "time runs forward");
+        time = *t;
+        let was = &mut at[*row as usize];
+        assert_eq!(was.abs_diff(*position), 1, "row {row}: {was} to {position}");
+        assert!((1..32).contains(position));
+        *was = *position;
+    }
 }
 
 #[test]

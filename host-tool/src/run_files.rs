@@ -1,0 +1,188 @@
+//! What `host-tool render` writes beside the image: the run summary, the
+//! per-node loads, the load and boundary histories over virtual time, and
+//! their plot.
+
+use std::collections::BTreeMap;
+
+use serde_json::json;
+
+use crate::error::HostError;
+use crate::history::boundary_history;
+use crate::plot::{Chart, Series, png};
+use crate::render::{RenderOptions, RenderResult};
+use crate::scene::Scene;
+
+/// max / mean of the nodes' running time.
+pub fn imbalance(r: &RenderResult) -> f64 {
+    let busy: Vec<f64> = r.frame.loads.iter().map(|l| l.map_or(0.0, |l| l.running as f64)).collect();
+    let mean = busy.iter().sum::<f64>() / busy.len().max(1) as f64;
+    busy.iter().cloned().fold(0.0, f64::max) / mean.max(f64::MIN_POSITIVE)
+}
+
+/// The run summary: the frame's totals, the options, the links, each node.
+pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String {
+    let f = &r.frame;
+    let nodes: Vec<_> = f
+        .loads
+        .iter()
+        .enumerate()
+        .map(|(id, l)| {
+            let l = l.unwrap_or(link_proto::LoadReport {
+                node: id as u16,
+                interval: 0,
+                running: 0,
+                waiting: 0,
+                rays: 0,
+                sphere_tests: 0,
+                cube_steps: 0,
+                refused: 0,
+                extent: 0,
+            });
+            let b = r.partition.bounds(id);
+            json!({
+                "id": id, "coord": r.partition.coord(id), "lo": b.lo, "hi": b.hi,
+                "running": l.running, "waiting": l.waiting, "rays": l.rays,
+                "sphere_tests": l.sphere_tests, "cube_steps": l.cube_steps, "refused": l.refused,
+                "bytes_sent": r.bytes[id].iter().sum::<u64>(),
+            })
+        })
+        .collect();
+    let v = json!({
+        "makespan": f.makespan,
+        "imbalance": imbalance(r),
+        "rays_created": f.rays_created,
+        "rays_terminated": f.rays_terminated,
+        // Each refusal cost its node a ray and a reply: see `--queue-depth`.
+        "rays_refused": f.loads.iter().flatten().map(|l| u64::from(l.refused)).sum::<u64>(),
+        "array": opts.array,
+        "grid": scene.grid,
+        "size": opts.size,
+        "spheres": scene.spheres.len(),
+        "lights": scene.lights.len(),
+        "initial_rays": opts.initial.name(),
+        "layout": opts.layout.name(),
+        "queue_depth": opts.level_depth,
+        "shared_slots": opts.shared_slots,
+        "balance": if opts.balance.is_some() { "slide" } else { "static" },
+        "driving_axis": r.partition.driving_axis,
+        "slides": f.slides.len(),
+        "refused_slides": f.refused_slides.len(),
+        "rounds": r.stats.rounds,
+        "faults": opts.sim.faults.map(|f| json!({"corrupt": f.corrupt, "drop": f.drop, "dup": f.dup, "delay": f.delay, "seed": f.seed})),
+        "retransmissions": r.links.retransmitted,
+        "corrupted_frames": r.links.corrupted,
+        "discarded_frames": r.links.discarded,
+        "wall_seconds": r.wall.as_secs_f64(),
+        "nodes": nodes,
+    });
+    serde_json::to_string_pretty(&v).unwrap_or_default()
+}
+
+/// One row per node: its place, time, work and bytes sent.
+pub fn loads_csv(r: &RenderResult) -> String {
+    let mut s =
+        String::from("node,x,y,z,running,waiting,load,rays,sphere_tests,cube_steps,refused,bytes_sent\n");
+    for (id, l) in r.frame.loads.iter().enumerate() {
+        let c = r.partition.coord(id);
+        let (run, wait, rays, tests, steps, refused) = l.map_or((0, 0, 0, 0, 0, 0), |l| {
+            (l.running, l.waiting, l.rays, l.sphere_tests, l.cube_steps, l.refused)
+        });
+        let load = if wait == 0 { f64::INFINITY } else { run as f64 / wait as f64 };
+        s += &format!(
+            "{id},{},{},{},{run},{wait},{load:.4},{rays},{tests},{steps},{refused},{}\n",
+            c[0],
+            c[1],
+            c[2],
+            r.bytes[id].iter().sum::<u64>()
+        );
+    }
+    s
+}
+
+/// Per-node load and boundary positions over virtual time.
+pub fn history_plot(r: &RenderResult) -> Result<Vec<u8>, HostError> {
+    let nodes = r.frame.loads.len();
+    let mut per_node: Vec<Vec<(f64, f64)>> = vec![Vec::new(); nodes];
+    for (at, l) in &r.frame.history {
+        let load =
+            if l.waiting == 0 { 100.0 } else { (l.running as f64 / l.waiting as f64).clamp(0.01, 100.0) };
+        if let Some(v) = per_node.get_mut(usize::from(l.node)) {
+            v.push((*at as f64, load));
+        }
+    }
+    let loads: Vec<Series> = per_node
+        .into_iter()
+        .enumerate()
+        .filter(|(_, p)| !p.is_empty())
+        .map(|(n, points)| Series { name: format!("node {n}"), points, markers: false })
+        .collect();
+    let history = boundary_history(&r.partition, &r.frame.slides);
+    let mut lines: BTreeMap<(usize, usize), Vec<(f64, f64)>> = BTreeMap::new();
+    for b in &history {
+        let line = lines.entry((b.row, b.index)).or_default();
+        if let Some(&(_, prev)) = line.last() {
+            line.push((b.time as f64, prev));
+        }
+        line.push((b.time as f64, f64::from(b.position)));
+    }
+    let end = r.frame.makespan as f64;
+    let boundaries: Vec<Series> = lines
+        .into_iter()
+        .map(|((row, index), mut points)| {
+            if let Some(&(_, last)) = points.last() {
+                points.push((end, last));
+            }
+            Series { name: format!("row {row} boundary {index}"), points, markers: false }
+        })
+        .collect();
+    let axis = ["x", "y", "z"][usize::from(r.partition.driving_axis)];
+    png(
+        &[
+            (
+                Chart {
+                    title: "Load (running / waiting) per node and interval".into(),
+                    x_label: "virtual time (cycles)".into(),
+                    y_label: "load".into(),
+                    log_x: false,
+                    log_y: true,
+                },
+                loads,
+            ),
+            (
+                Chart {
+                    title: format!("Boundary positions along the driving axis ({axis})"),
+                    x_label: "virtual time (cycles)".into(),
+                    y_label: "cube".into(),
+                    log_x: false,
+                    log_y: false,
+                },
+                boundaries,
+            ),
+        ],
+        1000,
+        420,
+    )
+}
+
+/// The load history: one row per node and interval,
+/// `time,node,interval,running,waiting,load` (load `inf` for no waiting).
+pub fn load_history_csv(r: &RenderResult) -> String {
+    let mut s = String::from("time,node,interval,running,waiting,load\n");
+    for (at, l) in &r.frame.history {
+        let load = if l.waiting == 0 { f64::INFINITY } else { l.running as f64 / l.waiting as f64 };
+        s += &format!("{at},{},{},{},{},{load:.4}\n", l.node, l.interval, l.running, l.waiting);
+    }
+    s
+}
+
+/// The boundary history: every boundary across the driving axis at time 0,
+/// then one row per committed slide, `time,row,boundary,position` (row: the
+/// line of nodes along the driving axis; boundary: between its nodes
+/// `boundary` and `boundary + 1`; position: in cubes along the driving axis).
+pub fn boundary_history_csv(r: &RenderResult) -> String {
+    let mut s = String::from("time,row,boundary,position\n");
+    for b in boundary_history(&r.partition, &r.frame.slides) {
+        s += &format!("{},{},{},{}\n", b.time, b.row, b.index, b.position);
+    }
+    s
+}
