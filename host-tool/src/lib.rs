@@ -1,7 +1,7 @@
 //! The host of the sliding-boundary ray tracer: it describes and validates
 //! scenes, partitions the grid over the array, broadcasts the scene, collects
 //! pixel contributions into images, and drives runs on the in-memory board.
-//! An independent f64 renderer ([`reference`]) checks the fixed-point image.
+//! An independent f64 renderer ([`mod@reference`]) checks the fixed-point image.
 
 pub mod backend;
 pub mod camera;

@@ -5,10 +5,15 @@
 //! family's exact floor ([`floor`]) is one more start.
 
 pub mod floor;
+mod planes;
+mod price;
+mod rows;
+
+pub use planes::bottleneck_cuts;
+use planes::plane_costs;
+pub use rows::{RowProfile, row_cuts};
 
 use link_proto::Boundaries;
-use node_fw::CubeBox;
-use node_fw::link::Port;
 
 use crate::cost_map::CostMap;
 use crate::error::{HostError, input};
@@ -191,198 +196,6 @@ impl Partition {
             a
         }
     }
-
-    /// Every node's cost under `map`, rays routed as the nodes route them
-    /// ([`node_fw::route`]): a ray leaving a node across a non-driving axis
-    /// goes to the neighbour at the same place along the driving axis, which
-    /// forwards it along that axis to the owner, every node on the way paying
-    /// both sides of a hop.
-    pub fn node_costs(&self, map: &CostMap) -> Vec<u64> {
-        let owner = self.owners(map.grid);
-        let boxes: Vec<_> = (0..self.len()).map(|id| self.bounds(id)).collect();
-        let mut cost = vec![0u64; self.len()];
-        for (i, &o) in owner.iter().enumerate() {
-            cost[o] += map.cell(i);
-        }
-        let n = map.grid.map(usize::from);
-        let stride = [1, n[0], n[0] * n[1]];
-        let mut i = 0;
-        for z in 0..n[2] {
-            for y in 0..n[1] {
-                for x in 0..n[0] {
-                    let cell = [x, y, z];
-                    let lo = owner[i];
-                    for a in (0..3).filter(|&a| cell[a] + 1 < n[a]) {
-                        let hi = owner[i + stride[a]];
-                        if lo != hi {
-                            let mut above = cell.map(|c| c as i32);
-                            above[a] += 1;
-                            self.charge_route(&boxes, &mut cost, lo, above, map.up[a][i]);
-                            self.charge_route(&boxes, &mut cost, hi, cell.map(|c| c as i32), map.down[a][i]);
-                        }
-                    }
-                    i += 1;
-                }
-            }
-        }
-        cost
-    }
-
-    /// Charges `per_side` to both ends of every hop of a ray leaving node
-    /// `from` for `cell`, each hop where that node's box sends it
-    /// ([`node_fw::route::toward`], the nodes' own rule).
-    fn charge_route(&self, boxes: &[CubeBox], cost: &mut [u64], from: usize, cell: [i32; 3], per_side: u64) {
-        let d = usize::from(self.driving_axis);
-        let [ax, ay, _] = self.array.map(usize::from);
-        let stride = [1, ax, ax * ay];
-        let mut at = from;
-        // Every hop moves toward the owner, so a route is shorter than the array;
-        // and `cell` is in the grid, so there is a neighbour that way.
-        for _ in 0..self.len() {
-            let Some(port) = node_fw::route::toward(&boxes[at], cell, d) else { break };
-            let axis = port.axis().unwrap_or(0);
-            let id = if port == Port::toward(axis, true) { at + stride[axis] } else { at - stride[axis] };
-            cost[at] += per_side;
-            cost[id] += per_side;
-            at = id;
-        }
-    }
-
-    /// The node holding each cube (x fastest).
-    fn owners(&self, grid: [u16; 3]) -> Vec<usize> {
-        let [nx, ny, _] = grid.map(usize::from);
-        let mut owner = vec![0; grid.iter().map(|&n| usize::from(n)).product()];
-        for id in 0..self.len() {
-            let b = self.bounds(id);
-            for z in b.lo[2]..b.hi[2] {
-                for y in b.lo[1]..b.hi[1] {
-                    for x in b.lo[0]..b.hi[0] {
-                        owner[usize::from(x) + nx * (usize::from(y) + ny * usize::from(z))] = id;
-                    }
-                }
-            }
-        }
-        owner
-    }
-
-    /// The cubes' cost (`cells`, x fastest) of the busiest row of nodes
-    /// along the driving axis.
-    fn busiest_row(&self, grid: [u16; 3], cells: &[u64]) -> u64 {
-        let [a, b] = self.row_axes();
-        let planes = plane_costs(grid, cells, a, b, &self.cuts[b]);
-        let row = |lo: u16, hi: u16, part: usize| -> u64 {
-            planes[usize::from(lo)..usize::from(hi)].iter().map(|p| p[part]).sum()
-        };
-        let parts = self.cuts[b].len() - 1;
-        self.cuts[a].windows(2).flat_map(|w| (0..parts).map(move |j| row(w[0], w[1], j))).max().unwrap_or(0)
-    }
-
-    /// Per row of nodes along the driving axis, what it pays before it is cut
-    /// along that axis: its cubes and the crossings of its side faces. Any
-    /// cut only adds to it.
-    pub fn row_loads(&self, map: &CostMap) -> Vec<u64> {
-        let parts = usize::from(self.array[usize::from(self.driving_axis)]);
-        (0..self.len() / parts).map(|row| self.row_profile(map, row).layers.iter().sum()).collect()
-    }
-
-    /// The cubes along `axis` (one across the driving axis) that row `row`
-    /// (in [`Self::row_of`] order) spans.
-    pub fn row_span(&self, row: usize, axis: usize) -> (u16, u16) {
-        let [a0, a1] = self.row_axes();
-        let mut node = [0u16; 3];
-        node[a0] = (row % usize::from(self.array[a0])) as u16;
-        node[a1] = (row / usize::from(self.array[a0])) as u16;
-        let cuts = self.cuts_at(axis, node);
-        (cuts[usize::from(node[axis])], cuts[usize::from(node[axis]) + 1])
-    }
-
-    /// One row of nodes (in [`Self::row_of`] order) as the map sees it, with
-    /// the planes across the driving axis whole: per layer of cubes across
-    /// the driving axis, its cubes and its crossings of the row's side faces;
-    /// per plane `k` between layers `k - 1` and `k`, what each side of a cut
-    /// there pays (`0` at the row's ends).
-    fn row_profile(&self, map: &CostMap, row: usize) -> RowProfile {
-        let d = usize::from(self.driving_axis);
-        let [a0, a1] = self.row_axes();
-        let n = usize::from(map.grid[d]);
-        let (mut layers, mut planes) = (vec![0u64; n], vec![0u64; n + 1]);
-        let ((lo0, hi0), (lo1, hi1)) = (self.row_span(row, a0), self.row_span(row, a1));
-        let at = |c0: u16, c1: u16, k: usize| {
-            let mut cell = [0i32; 3];
-            (cell[a0], cell[a1], cell[d]) = (i32::from(c0), i32::from(c1), k as i32);
-            map.index(cell)
-        };
-        let face = |a: usize, i: Option<usize>| i.map_or(0, |i| map.face(a, i));
-        for c1 in lo1..hi1 {
-            for c0 in lo0..hi0 {
-                for k in 0..n {
-                    let i = at(c0, c1, k);
-                    let mut sum = i.map_or(0, |i| map.cell(i));
-                    if c0 == lo0 && lo0 > 0 {
-                        sum += face(a0, at(c0 - 1, c1, k));
-                    }
-                    if c0 + 1 == hi0 && hi0 < map.grid[a0] {
-                        sum += face(a0, i);
-                    }
-                    if c1 == lo1 && lo1 > 0 {
-                        sum += face(a1, at(c0, c1 - 1, k));
-                    }
-                    if c1 + 1 == hi1 && hi1 < map.grid[a1] {
-                        sum += face(a1, i);
-                    }
-                    layers[k] += sum;
-                    if k + 1 < n {
-                        planes[k + 1] += face(d, i);
-                    }
-                }
-            }
-        }
-        RowProfile { layers, planes }
-    }
-}
-
-/// One row of nodes along the driving axis, as a cost map sees it.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct RowProfile {
-    /// Per layer of cubes across the driving axis, what its holder pays.
-    pub layers: Vec<u64>,
-    /// Per plane `k` between layers `k - 1` and `k`, what each side of a cut
-    /// there pays; the row's ends (`0` and `layers.len()`) are never charged.
-    pub planes: Vec<u64>,
-}
-
-impl RowProfile {
-    /// What each side of a cut at plane `k` pays (nothing at the row's ends).
-    fn plane(&self, k: usize) -> u64 {
-        if k == 0 || k == self.layers.len() { 0 } else { self.planes.get(k).copied().unwrap_or(0) }
-    }
-
-    /// The layers' running sums: `[0, l_0, l_0 + l_1, ...]`.
-    fn prefix(&self) -> Vec<u64> {
-        std::iter::once(0)
-            .chain(self.layers.iter().scan(0u64, |sum, &l| {
-                *sum += l;
-                Some(*sum)
-            }))
-            .collect()
-    }
-}
-
-/// Cuts `0 = c_0 < ... < c_parts = n` shared by `rows` (of `n` layers each)
-/// minimising the busiest part of any row: exact, by dynamic programming over
-/// (parts, end layer). Every part keeps at least one layer.
-pub fn row_cuts(rows: &[RowProfile], parts: usize) -> Vec<u16> {
-    let n = rows.first().map_or(0, |r| r.layers.len());
-    let parts = parts.clamp(1, n.max(1));
-    // cost[i][j]: what the part of layers i..j pays in the busiest row, by
-    // running sums, tabled once (the search asks for each span many times).
-    let sums: Vec<Vec<u64>> = rows.iter().map(RowProfile::prefix).collect();
-    let part = |i: usize, j: usize| {
-        rows.iter().zip(&sums).map(|(r, s)| s[j] - s[i] + r.plane(i) + r.plane(j)).max().unwrap_or(0)
-    };
-    let cost: Vec<Vec<u64>> =
-        (0..=n).map(|i| (0..=n).map(|j| if i < j { part(i, j) } else { 0 }).collect()).collect();
-    floor::least_busiest(n, parts, |i, j| cost[i][j]).1
 }
 
 /// A fit's score: the busiest node's cost, then the sum of squares.
@@ -392,65 +205,6 @@ type Score = (u64, u128);
 fn score(costs: &[u64]) -> Score {
     let max = costs.iter().copied().max().unwrap_or(0);
     (max, costs.iter().map(|&c| u128::from(c) * u128::from(c)).sum())
-}
-
-/// Per plane of cubes across axis `cut`, its cost within each part of axis
-/// `other` (cut at `other_cuts`), summed over the third axis.
-fn plane_costs(grid: [u16; 3], cost: &[u64], cut: usize, other: usize, other_cuts: &[u16]) -> Vec<Vec<u64>> {
-    let part_of: Vec<usize> = (0..grid[other])
-        .map(|c| other_cuts.windows(2).position(|w| c >= w[0] && c < w[1]).unwrap_or(0))
-        .collect();
-    let mut planes = vec![vec![0u64; other_cuts.len().saturating_sub(1)]; usize::from(grid[cut])];
-    let (nx, ny) = (usize::from(grid[0]), usize::from(grid[1]));
-    for (i, &c) in cost.iter().enumerate() {
-        let cell = [i % nx, (i / nx) % ny, i / (nx * ny)];
-        if let Some(part) = planes.get_mut(cell[cut]).and_then(|p| p.get_mut(part_of[cell[other]])) {
-            *part += c;
-        }
-    }
-    planes
-}
-
-/// Cuts `0 = c_0 < ... < c_parts = planes.len()` minimising the largest
-/// per-component sum of any part (each plane a vector of costs, one per row
-/// it crosses): the least feasible bound by bisection, then a greedy cut.
-pub fn bottleneck_cuts(planes: &[Vec<u64>], parts: usize) -> Vec<u16> {
-    let fallback = || (0..=parts).map(|i| (i * planes.len() / parts.max(1)) as u16).collect();
-    if parts == 0 || planes.len() < parts {
-        return fallback();
-    }
-    let (mut lo, mut hi) = (0u64, planes.iter().flatten().sum::<u64>());
-    while lo < hi {
-        let mid = lo + (hi - lo) / 2;
-        if greedy_cuts(planes, parts, mid).is_some() { hi = mid } else { lo = mid + 1 }
-    }
-    greedy_cuts(planes, parts, lo).unwrap_or_else(fallback)
-}
-
-/// Cuts with no part over `bound` in any component, exactly `parts` parts of
-/// at least one plane each, or `None` if that takes more parts.
-fn greedy_cuts(planes: &[Vec<u64>], parts: usize, bound: u64) -> Option<Vec<u16>> {
-    let n = planes.len();
-    let mut cuts = vec![0u16];
-    let mut acc = vec![0u64; planes.first().map_or(0, Vec::len)];
-    for (i, plane) in planes.iter().enumerate() {
-        let started = usize::from(*cuts.last().unwrap_or(&0)) < i;
-        let over = acc.iter().zip(plane).any(|(a, p)| a + p > bound);
-        // Cut when this part is full, or when every part still to come needs a plane.
-        if started && (over || n - i == parts - cuts.len()) {
-            if cuts.len() == parts {
-                return None;
-            }
-            cuts.push(i as u16);
-            acc.iter_mut().for_each(|a| *a = 0);
-        }
-        if plane.iter().any(|&p| p > bound) {
-            return None;
-        }
-        acc.iter_mut().zip(plane).for_each(|(a, p)| *a += p);
-    }
-    cuts.push(n as u16);
-    (cuts.len() == parts + 1).then_some(cuts)
 }
 
 #[cfg(test)]

@@ -1,0 +1,116 @@
+//! Rows of nodes along the driving axis: what each layer of cubes and each
+//! cut costs a row, and the exact cut of rows by dynamic programming.
+
+use crate::cost_map::CostMap;
+use crate::partition::Partition;
+
+use super::floor;
+
+impl Partition {
+    /// Per row of nodes along the driving axis, what it pays before it is cut
+    /// along that axis: its cubes and the crossings of its side faces. Any
+    /// cut only adds to it.
+    pub fn row_loads(&self, map: &CostMap) -> Vec<u64> {
+        let parts = usize::from(self.array[usize::from(self.driving_axis)]);
+        (0..self.len() / parts).map(|row| self.row_profile(map, row).layers.iter().sum()).collect()
+    }
+
+    /// The cubes along `axis` (one across the driving axis) that row `row`
+    /// (in [`Self::row_of`] order) spans.
+    pub fn row_span(&self, row: usize, axis: usize) -> (u16, u16) {
+        let [a0, a1] = self.row_axes();
+        let mut node = [0u16; 3];
+        node[a0] = (row % usize::from(self.array[a0])) as u16;
+        node[a1] = (row / usize::from(self.array[a0])) as u16;
+        let cuts = self.cuts_at(axis, node);
+        (cuts[usize::from(node[axis])], cuts[usize::from(node[axis]) + 1])
+    }
+
+    /// One row of nodes (in [`Self::row_of`] order) as the map sees it, with
+    /// the planes across the driving axis whole: per layer of cubes across
+    /// the driving axis, its cubes and its crossings of the row's side faces;
+    /// per plane `k` between layers `k - 1` and `k`, what each side of a cut
+    /// there pays (`0` at the row's ends).
+    pub(super) fn row_profile(&self, map: &CostMap, row: usize) -> RowProfile {
+        let d = usize::from(self.driving_axis);
+        let [a0, a1] = self.row_axes();
+        let n = usize::from(map.grid[d]);
+        let (mut layers, mut planes) = (vec![0u64; n], vec![0u64; n + 1]);
+        let ((lo0, hi0), (lo1, hi1)) = (self.row_span(row, a0), self.row_span(row, a1));
+        let at = |c0: u16, c1: u16, k: usize| {
+            let mut cell = [0i32; 3];
+            (cell[a0], cell[a1], cell[d]) = (i32::from(c0), i32::from(c1), k as i32);
+            map.index(cell)
+        };
+        let face = |a: usize, i: Option<usize>| i.map_or(0, |i| map.face(a, i));
+        for c1 in lo1..hi1 {
+            for c0 in lo0..hi0 {
+                for k in 0..n {
+                    let i = at(c0, c1, k);
+                    let mut sum = i.map_or(0, |i| map.cell(i));
+                    if c0 == lo0 && lo0 > 0 {
+                        sum += face(a0, at(c0 - 1, c1, k));
+                    }
+                    if c0 + 1 == hi0 && hi0 < map.grid[a0] {
+                        sum += face(a0, i);
+                    }
+                    if c1 == lo1 && lo1 > 0 {
+                        sum += face(a1, at(c0, c1 - 1, k));
+                    }
+                    if c1 + 1 == hi1 && hi1 < map.grid[a1] {
+                        sum += face(a1, i);
+                    }
+                    layers[k] += sum;
+                    if k + 1 < n {
+                        planes[k + 1] += face(d, i);
+                    }
+                }
+            }
+        }
+        RowProfile { layers, planes }
+    }
+}
+
+/// One row of nodes along the driving axis, as a cost map sees it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RowProfile {
+    /// Per layer of cubes across the driving axis, what its holder pays.
+    pub layers: Vec<u64>,
+    /// Per plane `k` between layers `k - 1` and `k`, what each side of a cut
+    /// there pays; the row's ends (`0` and `layers.len()`) are never charged.
+    pub planes: Vec<u64>,
+}
+
+impl RowProfile {
+    /// What each side of a cut at plane `k` pays (nothing at the row's ends).
+    fn plane(&self, k: usize) -> u64 {
+        if k == 0 || k == self.layers.len() { 0 } else { self.planes.get(k).copied().unwrap_or(0) }
+    }
+
+    /// The layers' running sums: `[0, l_0, l_0 + l_1, ...]`.
+    fn prefix(&self) -> Vec<u64> {
+        std::iter::once(0)
+            .chain(self.layers.iter().scan(0u64, |sum, &l| {
+                *sum += l;
+                Some(*sum)
+            }))
+            .collect()
+    }
+}
+
+/// Cuts `0 = c_0 < ... < c_parts = n` shared by `rows` (of `n` layers each)
+/// minimising the busiest part of any row: exact, by dynamic programming over
+/// (parts, end layer). Every part keeps at least one layer.
+pub fn row_cuts(rows: &[RowProfile], parts: usize) -> Vec<u16> {
+    let n = rows.first().map_or(0, |r| r.layers.len());
+    let parts = parts.clamp(1, n.max(1));
+    // cost[i][j]: what the part of layers i..j pays in the busiest row, by
+    // running sums, tabled once (the search asks for each span many times).
+    let sums: Vec<Vec<u64>> = rows.iter().map(RowProfile::prefix).collect();
+    let part = |i: usize, j: usize| {
+        rows.iter().zip(&sums).map(|(r, s)| s[j] - s[i] + r.plane(i) + r.plane(j)).max().unwrap_or(0)
+    };
+    let cost: Vec<Vec<u64>> =
+        (0..=n).map(|i| (0..=n).map(|j| if i < j { part(i, j) } else { 0 }).collect()).collect();
+    floor::least_busiest(n, parts, |i, j| cost[i][j]).1
+}
