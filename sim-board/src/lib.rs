@@ -13,6 +13,7 @@ pub mod board;
 pub mod cost;
 pub mod faults;
 pub mod sim_links;
+mod slot;
 
 pub use board::{Board, HostEndpoint, RunStats, SimConfig, SimError, SimNode};
 pub use cost::{CostModel, LinkModel};
