@@ -74,8 +74,10 @@ impl PaperConfig {
     }
 }
 
-/// The proportional policy's settings: gamma 4 (ALL's stable choice), a 10% dead band.
-pub const PROPORTIONAL: SlidePolicy = SlidePolicy::Proportional { gamma: 4 << 16, deadband: 6554 };
+/// The proportional policy's settings: gamma 4 (ALL's stable choice), a 15% dead band
+/// (at 10% two of the 16 `bench paper` configurations moved over 1% of their
+/// boundaries per interval in steady state; see the README).
+pub const PROPORTIONAL: SlidePolicy = SlidePolicy::Proportional { gamma: 4 << 16, deadband: 9830 };
 
 /// How a balanced run slides.
 #[derive(Debug, Clone, Copy)]
