@@ -156,9 +156,7 @@ fn run_on(
     if r.frame.rays_created != r.frame.rays_terminated {
         return Err(HostError::Node("rays lost in a benchmark run".into()));
     }
-    let busy: Vec<f64> = r.frame.loads.iter().map(|l| l.map_or(0.0, |l| l.running as f64)).collect();
-    let mean = busy.iter().sum::<f64>() / busy.len().max(1) as f64;
-    let imbalance = busy.iter().cloned().fold(0.0, f64::max) / mean.max(1.0);
+    let imbalance = crate::run_files::imbalance(&r);
     let history = crate::history::boundary_history(&r.partition, &r.frame.slides);
     let t = r.frame.makespan;
     let per_interval = |moves: usize, span: u64| {
@@ -170,7 +168,7 @@ fn run_on(
         imbalance,
         slides: r.frame.slides.len(),
         axis: r.partition.driving_axis,
-        busy: busy.iter().sum::<f64>() as u64,
+        busy: r.frame.loads.iter().flatten().map(|l| l.running).sum(),
         churn: per_interval(r.frame.slides.len(), t),
         steady_churn: per_interval(steady.moves, t - t / 4 - t / 4),
         reversals: steady.reversals as f64 / steady.moves.max(1) as f64,

@@ -87,7 +87,7 @@ pub fn loads_csv(r: &RenderResult) -> String {
         let (run, wait, rays, tests, steps, refused) = l.map_or((0, 0, 0, 0, 0, 0), |l| {
             (l.running, l.waiting, l.rays, l.sphere_tests, l.cube_steps, l.refused)
         });
-        let load = if wait == 0 { f64::INFINITY } else { run as f64 / wait as f64 };
+        let load = load(run, wait);
         s += &format!(
             "{id},{},{},{},{run},{wait},{load:.4},{rays},{tests},{steps},{refused},{}\n",
             c[0],
@@ -104,8 +104,8 @@ pub fn history_plot(r: &RenderResult) -> Result<Vec<u8>, HostError> {
     let nodes = r.frame.loads.len();
     let mut per_node: Vec<Vec<(f64, f64)>> = vec![Vec::new(); nodes];
     for (at, l) in &r.frame.history {
-        let load =
-            if l.waiting == 0 { 100.0 } else { (l.running as f64 / l.waiting as f64).clamp(0.01, 100.0) };
+        // Clamped for the log axis: idle (0) and never waiting (infinite) stay on the chart.
+        let load = load(l.running, l.waiting).clamp(0.01, 100.0);
         if let Some(v) = per_node.get_mut(usize::from(l.node)) {
             v.push((*at as f64, load));
         }
@@ -169,7 +169,7 @@ pub fn history_plot(r: &RenderResult) -> Result<Vec<u8>, HostError> {
 pub fn load_history_csv(r: &RenderResult) -> String {
     let mut s = String::from("time,node,interval,running,waiting,load\n");
     for (at, l) in &r.frame.history {
-        let load = if l.waiting == 0 { f64::INFINITY } else { l.running as f64 / l.waiting as f64 };
+        let load = load(l.running, l.waiting);
         s += &format!("{at},{},{},{},{},{load:.4}\n", l.node, l.interval, l.running, l.waiting);
     }
     s
@@ -185,4 +185,9 @@ pub fn boundary_history_csv(r: &RenderResult) -> String {
         s += &format!("{},{},{},{}\n", b.time, b.row, b.index, b.position);
     }
     s
+}
+
+/// The paper's load, running / waiting; infinite when the node never waited.
+fn load(running: u64, waiting: u64) -> f64 {
+    if waiting == 0 { f64::INFINITY } else { running as f64 / waiting as f64 }
 }
