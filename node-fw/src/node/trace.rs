@@ -87,8 +87,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         let stage = match outcome {
             Outcome::Leave => {
                 ray.cell = walk.cell().map(|c| c as u16);
-                let driving = self.assign.map_or(0, |a| usize::from(a.driving_axis));
-                match route::toward(&self.region.owned(), walk.cell(), driving) {
+                match route::toward(&self.region.owned(), walk.cell(), self.driving_axis()) {
                     Some(port) => self.leave_by(port, ray.class),
                     None => return self.fail(ErrorCode::BadRay, ray.pixel, 2),
                 }
