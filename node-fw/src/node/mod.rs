@@ -307,6 +307,14 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             (Port::Host, Message::RenderStart(r)) => self.start_render(r),
             (Port::Host, Message::Finish(_)) => self.load_due = Some(FINAL_INTERVAL),
             (p, Message::Ray(ray)) if p != Port::Host => self.admit_ray(p, ray),
+            // A neighbour that began its frame first may report an interval
+            // while this node is still loading: the host starts the nodes one
+            // by one, and a lossy host link delays some by resends. Until this
+            // node has its assignment it does not know its driving axis, so
+            // it cannot tell which side the load came from; and the slide
+            // decision pairs loads of this node's own frame only. The report
+            // is moot here, so it is dropped.
+            (p, Message::Load(_)) if p != Port::Host && self.phase != Phase::Rendering => {}
             (
                 p,
                 m @ (Message::Load(_)
