@@ -28,17 +28,34 @@ pub struct Fate {
     pub delayed: bool,
 }
 
+/// SplitMix64's output function: a bijection that spreads every input bit.
+fn splitmix64(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
 /// A seeded generator for one link end (xorshift64*).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FaultRng(u64);
 
 impl FaultRng {
     /// The generator of link end `(node, port)` under `seed`.
+    ///
+    /// The three are mixed by SplitMix64's finaliser, a bijection of `u64`, so
+    /// distinct seeds give distinct streams on every link end. Xorshift needs a
+    /// state other than zero; the one input that maps there takes a fixed
+    /// non-zero state instead (forcing the low bit, as before, made seeds
+    /// `2k` and `2k + 1` the same).
     pub fn new(seed: u64, node: usize, port: usize) -> Self {
         let mix = seed
             ^ (node as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
             ^ (port as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
-        Self(mix | 1)
+        match splitmix64(mix) {
+            0 => Self(0x9E37_79B9_7F4A_7C15),
+            state => Self(state),
+        }
     }
 
     fn next(&mut self) -> u64 {
@@ -64,5 +81,42 @@ impl FaultRng {
         }
         let copies = if self.chance(faults.dup) { 2 } else { 1 };
         Fate { bytes, copies, delayed: self.chance(faults.delay) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fates of 256 frames on one link end under `seed`, as drop and corrupt flags.
+    fn pattern(seed: u64) -> Vec<(bool, bool)> {
+        let faults = Faults { corrupt: 0.3, drop: 0.3, dup: 0.0, delay: 0.0, seed };
+        let mut rng = FaultRng::new(seed, 5, 2);
+        (0..256)
+            .map(|_| {
+                let fate = rng.fate(&faults, &[0xA5; 8]);
+                (fate.copies == 0, fate.copies > 0 && fate.bytes != [0xA5; 8])
+            })
+            .collect()
+    }
+
+    #[test]
+    fn neighbouring_seeds_give_different_fault_patterns() {
+        // Seeds 2k and 2k + 1 once collided: the low bit was forced on.
+        let patterns: Vec<_> = (0..64).map(pattern).collect();
+        for (i, a) in patterns.iter().enumerate() {
+            for (j, b) in patterns.iter().enumerate().skip(i + 1) {
+                assert_ne!(a, b, "seeds {i} and {j} give the same faults");
+            }
+        }
+    }
+
+    #[test]
+    fn every_link_end_has_its_own_stream() {
+        let first = |node, port| FaultRng::new(7, node, port).next();
+        let mut seen: Vec<u64> = (0..64).flat_map(|n| (0..7).map(move |p| first(n, p))).collect();
+        seen.sort_unstable();
+        seen.dedup();
+        assert_eq!(seen.len(), 64 * 7);
     }
 }
