@@ -14,8 +14,8 @@ pub enum HostError {
     Radius(String),
     /// A sphere outside the grid, or sticking out of it (exit 13).
     OutsideGrid(String),
-    /// A zero-size image (exit 14).
-    ZeroSize(String),
+    /// An image size out of range: zero, or over [`crate::frame::MAX_PIXELS`] (exit 14).
+    ImageSize(String),
     /// An array larger than the grid (exit 15).
     ArrayTooLarge(String),
     /// A node cannot hold its part of the scene (exit 16; the node is named).
@@ -40,7 +40,7 @@ impl HostError {
             HostError::NonFinite(_) => 11,
             HostError::Radius(_) => 12,
             HostError::OutsideGrid(_) => 13,
-            HostError::ZeroSize(_) => 14,
+            HostError::ImageSize(_) => 14,
             HostError::ArrayTooLarge(_) => 15,
             HostError::Capacity(_) => 16,
             HostError::Input(_) => 17,
@@ -59,7 +59,7 @@ impl HostError {
             HostError::NonFinite(m) => HostError::NonFinite(wrap(m)),
             HostError::Radius(m) => HostError::Radius(wrap(m)),
             HostError::OutsideGrid(m) => HostError::OutsideGrid(wrap(m)),
-            HostError::ZeroSize(m) => HostError::ZeroSize(wrap(m)),
+            HostError::ImageSize(m) => HostError::ImageSize(wrap(m)),
             HostError::ArrayTooLarge(m) => HostError::ArrayTooLarge(wrap(m)),
             HostError::Capacity(m) => HostError::Capacity(wrap(m)),
             HostError::Input(m) => HostError::Input(wrap(m)),
@@ -77,7 +77,7 @@ impl HostError {
             | HostError::NonFinite(m)
             | HostError::Radius(m)
             | HostError::OutsideGrid(m)
-            | HostError::ZeroSize(m)
+            | HostError::ImageSize(m)
             | HostError::ArrayTooLarge(m)
             | HostError::Capacity(m)
             | HostError::Input(m)

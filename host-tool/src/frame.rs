@@ -3,6 +3,28 @@
 use link_proto::{ErrorReport, LoadReport, Message, PROTOCOL_VERSION, Retire};
 use sim_board::HostEndpoint;
 
+use crate::error::HostError;
+
+/// The most pixels an image may have: 2^26, such as 8192 x 8192. The host
+/// keeps three 64-bit sums per pixel (1.5 GiB at this size) and the image
+/// itself; beyond it a run would exhaust a desktop's memory rather than fail
+/// with a message, so larger sizes are refused up front.
+pub const MAX_PIXELS: u64 = 1 << 26;
+
+/// Checks an image size: at least 1 x 1 and at most [`MAX_PIXELS`] pixels.
+pub fn check_size(width: u16, height: u16) -> Result<(), HostError> {
+    let pixels = u64::from(width) * u64::from(height);
+    if pixels == 0 {
+        return Err(HostError::ImageSize(format!("image size {width}x{height} must be at least 1x1")));
+    }
+    if pixels > MAX_PIXELS {
+        return Err(HostError::ImageSize(format!(
+            "image size {width}x{height} is {pixels} pixels; the most is {MAX_PIXELS} (such as 8192x8192)"
+        )));
+    }
+    Ok(())
+}
+
 /// Everything the host collects during a frame.
 #[derive(Debug, Clone)]
 pub struct FrameBuffer {

@@ -7,7 +7,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use host_tool::backend::Backend;
 use host_tool::compare::compare;
 use host_tool::error::{HostError, input};
-use host_tool::output::{png, write_atomic};
+use host_tool::output::{check_writable, png, write_all_atomic, write_atomic};
 use host_tool::render::{Initial, Layout, RenderOptions, render_sim};
 use host_tool::run_files::{
     boundary_history_csv, history_plot, imbalance, load_history_csv, loads_csv, summary_json,
@@ -271,7 +271,10 @@ struct ReferenceArgs {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return usage_error(&e),
+    };
     let result = match cli.command {
         Command::Render(args) => render(*args),
         Command::Reference(args) => reference_cmd(args),
@@ -304,6 +307,29 @@ fn main() -> ExitCode {
             ExitCode::from(e.exit_code() as u8)
         }
     }
+}
+
+/// Help and version go to stdout as clap writes them. A usage error leads
+/// with the one line that says what is wrong, then clap's tip and its pointer
+/// to `--help`, without the usage block and blank lines between; exit 2.
+fn usage_error(e: &clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion)
+        || e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    {
+        let _ = e.print();
+        let code = if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand { 2 } else { 0 };
+        return ExitCode::from(code);
+    }
+    let text = e.render().to_string();
+    let mut lines = text.lines().map(str::trim_end).filter(|l| !l.trim().is_empty());
+    let what = lines.next().unwrap_or("error: bad command line");
+    eprintln!("{what}");
+    for line in lines.filter(|l| l.trim_start().starts_with("tip:") || l.starts_with("For more information"))
+    {
+        eprintln!("{line}");
+    }
+    ExitCode::from(2)
 }
 
 /// The scene the options describe: a file, a random scene, or the built-in demo.
@@ -379,6 +405,16 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         )));
     }
     let timeout = std::time::Duration::from_secs_f64(args.node_timeout);
+    // A run writes all of its outputs or none: a path that cannot take its
+    // file is refused before the render, not after it.
+    check_writable(&[
+        &args.out,
+        &args.plot,
+        &args.loads,
+        &args.summary,
+        &args.load_history,
+        &args.boundary_history,
+    ])?;
     let result = host_tool::backend::render(&scene, &opts, &backend, timeout)?;
     let f = &result.frame;
     let image = png(f.width, f.height, &f.rgb8())?;
@@ -387,12 +423,14 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
     let history = load_history_csv(&result);
     let boundaries = boundary_history_csv(&result);
     let plot = history_plot(&result)?;
-    write_atomic(&args.out, &image)?;
-    write_atomic(&args.plot, &plot)?;
-    write_atomic(&args.loads, loads.as_bytes())?;
-    write_atomic(&args.summary, summary.as_bytes())?;
-    write_atomic(&args.load_history, history.as_bytes())?;
-    write_atomic(&args.boundary_history, boundaries.as_bytes())?;
+    write_all_atomic(&[
+        (&args.out, &image),
+        (&args.plot, &plot),
+        (&args.loads, loads.as_bytes()),
+        (&args.summary, summary.as_bytes()),
+        (&args.load_history, history.as_bytes()),
+        (&args.boundary_history, boundaries.as_bytes()),
+    ])?;
     eprintln!(
         "rendered {}x{} on {}x{}x{} nodes: makespan {} {}, imbalance {:.3}, {} rays, {:.2} s -> {}",
         f.width,
@@ -413,9 +451,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
 fn reference_cmd(args: ReferenceArgs) -> Result<(), HostError> {
     let scene = load_scene(&args.scene)?;
     let [w, h] = args.scene.size;
-    if w == 0 || h == 0 {
-        return Err(HostError::ZeroSize(format!("image size {w}x{h} must be at least 1x1")));
-    }
+    host_tool::frame::check_size(w, h)?;
     let img = reference::render(&scene, w, h);
     write_atomic(&args.out, &png(w, h, &img.rgb8())?)?;
     eprintln!("reference {w}x{h} -> {}", args.out.display());
@@ -425,9 +461,7 @@ fn reference_cmd(args: ReferenceArgs) -> Result<(), HostError> {
 fn compare_cmd(args: SceneArgs) -> Result<(), HostError> {
     let scene = load_scene(&args)?;
     let [w, h] = args.size;
-    if w == 0 || h == 0 {
-        return Err(HostError::ZeroSize(format!("image size {w}x{h} must be at least 1x1")));
-    }
+    host_tool::frame::check_size(w, h)?;
     let fixed = direct::render(&scene, w, h)?;
     let fixed_rgb: Vec<u8> = fixed.sums.iter().flat_map(|px| px.map(host_tool::frame::to_srgb8)).collect();
     let refimg = reference::render(&scene, w, h);

@@ -192,6 +192,7 @@ pub fn initial_partition(
     opts: &RenderOptions,
     capacity: Capacity,
 ) -> Result<Partition, HostError> {
+    crate::frame::check_size(opts.size[0], opts.size[1])?;
     let axis = match opts.driving_axis {
         Some(a) if a > 2 => return Err(input(format!("driving axis {a} must be 0, 1 or 2"))),
         Some(a) => a,
@@ -202,6 +203,8 @@ pub fn initial_partition(
         Layout::Preview => {
             // Checked first so a bad array gets the even partition's error.
             Partition::even(scene.grid, opts.array, axis)?;
+            // And the pool, before the preview takes its time.
+            check_pool(scene, opts, axis, Boundaries::Whole, capacity)?;
             let [w, h] = opts.size.map(|n| n.div_ceil(PREVIEW_STRIDE).max(1));
             // Entry tiles create each ray on its entry cube's node: that is
             // work of the cube. Other modes spread creation by tiles.
@@ -211,7 +214,7 @@ pub fn initial_partition(
             // Staggered no further than the nodes' pools can route at this depth.
             let most = [Boundaries::StaggeredColumns, Boundaries::StaggeredRows]
                 .into_iter()
-                .find(|&b| slots_needed(scene, opts, axis, b) <= u32::from(capacity.rays))
+                .find(|&b| check_pool(scene, opts, axis, b, capacity).is_ok())
                 .unwrap_or(Boundaries::Whole);
             Partition::fitted(scene.grid, opts.array, axis, &costs, most)
         }
@@ -243,17 +246,44 @@ pub fn check_frame(
     capacity: Capacity,
 ) -> Result<(), HostError> {
     let [w, h] = opts.size;
-    if w == 0 || h == 0 {
-        return Err(HostError::ZeroSize(format!("image size {w}x{h} must be at least 1x1")));
-    }
+    crate::frame::check_size(w, h)?;
     partition.check_capacity(scene, capacity)?;
-    let shared = opts.shared_slots.map_or(0, u32::from);
-    let needed = slots_needed(scene, opts, partition.driving_axis, partition.boundaries());
-    if opts.level_depth == 0 || needed > u32::from(capacity.rays) {
+    check_pool(scene, opts, partition.driving_axis, partition.boundaries(), capacity)
+}
+
+/// Checks that a node's ray pool can take the class levels and slots a frame
+/// needs ([`node_fw::pool`]): the node would refuse the start otherwise, after
+/// the whole scene had been sent.
+fn check_pool(
+    scene: &Scene,
+    opts: &RenderOptions,
+    axis: u8,
+    boundaries: Boundaries,
+    capacity: Capacity,
+) -> Result<(), HostError> {
+    if opts.level_depth == 0 {
+        return Err(input("--queue-depth must be at least 1 (one ray slot per class level)"));
+    }
+    let lined_up = boundaries.when_sliding(opts.balance.is_some());
+    let levels = class_bound(opts.array, scene.max_depth, usize::from(axis), lined_up) + 1;
+    let sliding = if opts.balance.is_some() { " with sliding boundaries" } else { "" };
+    let [x, y, z] = opts.array;
+    if levels as usize > node_fw::pool::MAX_LEVELS {
         return Err(HostError::Capacity(format!(
-            "queue depth {} and {shared} shared slots need {needed} ray slots per node for this array \
-             and max_depth; a node has {}",
-            opts.level_depth, capacity.rays
+            "rays on a {x}x{y}x{z} array{sliding} at max_depth {} take {levels} class levels; a node's pool \
+             has at most {}: use a smaller array, a lower max_depth, or --balance static",
+            scene.max_depth,
+            node_fw::pool::MAX_LEVELS
+        )));
+    }
+    let needed = slots_needed(scene, opts, axis, boundaries);
+    if needed > u32::from(capacity.rays) {
+        let shared = opts.shared_slots.map_or(0, u32::from);
+        return Err(HostError::Capacity(format!(
+            "{levels} class levels ({x}x{y}x{z} array{sliding}, max_depth {}) at --queue-depth {} and \
+             {shared} --shared-slots need {needed} ray slots per node; a node has {}: lower --queue-depth \
+             or --shared-slots, or use a smaller array or --balance static",
+            scene.max_depth, opts.level_depth, capacity.rays
         )));
     }
     Ok(())

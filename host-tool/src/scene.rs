@@ -146,8 +146,16 @@ pub const MAX_LIGHTS: usize = node_fw::node::MAX_LIGHTS;
 impl Scene {
     /// Reads and validates a scene file.
     pub fn load(path: &std::path::Path) -> Result<Scene, HostError> {
-        let text = std::fs::read_to_string(path)
+        let bytes = std::fs::read(path)
             .map_err(|e| HostError::Io(format!("cannot read scene {}: {e}", path.display())))?;
+        // Read, but not a scene: exit 10 like any other malformed file, not 20.
+        let text = String::from_utf8(bytes).map_err(|e| {
+            HostError::Malformed(format!(
+                "scene {} is not valid: not UTF-8 text (byte {} is not UTF-8)",
+                path.display(),
+                e.utf8_error().valid_up_to()
+            ))
+        })?;
         let scene: Scene = serde_json::from_str(&text)
             .map_err(|e| HostError::Malformed(format!("scene {} is not valid: {e}", path.display())))?;
         scene.validate()?;

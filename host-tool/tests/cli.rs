@@ -91,6 +91,85 @@ fn bad_input_is_one_line_with_its_documented_exit_code() {
         "node 0 (0,0,0) would hold",
     );
     fails("missing", &render(&["--scene", "nope.json"]), None, 20, "cannot read scene");
+    // Readable, but not a scene: malformed (10), not unreadable (20).
+    let garbage = String::from_utf8_lossy(&[0xff, 0xfe, 0x00, 0x9c, 0x80]).into_owned();
+    let scratch = scratch("binary");
+    std::fs::write(scratch.path().join("scene.json"), [0xff, 0xfe, 0x00, 0x9c, 0x80]).unwrap();
+    let out = host_tool(scratch.path(), &render(&["--scene", "scene.json"]));
+    assert_eq!(
+        out.status.code(),
+        Some(10),
+        "binary scene ({garbage:?}): {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not UTF-8"));
+}
+
+/// An image the host could not hold is refused up front, in one line, with
+/// the largest size stated; it used to abort with an allocation failure.
+#[test]
+fn an_image_too_large_to_hold_is_refused() {
+    let too_large = ["render", "--spheres", "10", "--size", "65535x65535", "--array", "2x2x2"];
+    fails("huge", &too_large, None, 14, "the most is 67108864");
+    fails(
+        "huge-reference",
+        &["reference", "--spheres", "10", "--size", "8193x8192"],
+        None,
+        14,
+        "the most is",
+    );
+    fails("huge-compare", &["compare", "--spheres", "10", "--size", "65535x2000"], None, 14, "the most is");
+}
+
+/// Arrays whose rays take more class levels than a node's pool has are
+/// refused before anything is sent, naming the limit and what to change;
+/// they used to start and end with a node's PoolCapacity report.
+#[test]
+fn a_pool_too_small_for_the_classes_is_refused_up_front() {
+    let many = ["render", "--array", "10x10x10", "--size", "16x16"];
+    fails("levels", &many, None, 16, "a node's pool has at most 1024: use a smaller array");
+    let preview = ["render", "--array", "16x16x16", "--size", "16x16", "--layout", "preview"];
+    fails("levels-preview", &preview, None, 16, "class levels");
+    fails(
+        "depth-0",
+        &["render", "--queue-depth", "0", "--size", "8x8"],
+        None,
+        17,
+        "--queue-depth must be at least 1",
+    );
+    // The same array without sliding fits: the refusal names a setting that works.
+    let scratch = scratch("levels-static");
+    let out = host_tool(
+        scratch.path(),
+        &["render", "--array", "10x10x10", "--size", "16x16", "--balance", "static"],
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// One output that cannot be written means none is: checked before the run.
+#[test]
+fn an_unwritable_output_writes_nothing() {
+    let args = ["render", "--spheres", "10", "--size", "8x8", "--summary", "/nonexistent/s.json"];
+    fails("unwritable", &args, None, 20, "cannot write /nonexistent/s.json");
+    let twice = ["render", "--spheres", "10", "--size", "8x8", "--loads", "render.png"];
+    fails("twice", &twice, None, 17, "both be written to render.png");
+}
+
+/// A usage error leads with the one line that says what is wrong, then
+/// clap's pointer to --help; exit 2.
+#[test]
+fn a_usage_error_leads_with_what_is_wrong() {
+    let scratch = scratch("usage");
+    for args in [&["render", "--frobnicate"][..], &["render", "--array", "4x4"], &["render", "--size"]] {
+        let out = host_tool(scratch.path(), args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        let lines: Vec<&str> = err.lines().collect();
+        assert!(lines[0].starts_with("error: ") && lines[0].len() > 20, "{args:?}: {err}");
+        assert!(lines.len() <= 3 && !lines.iter().any(|l| l.trim().is_empty()), "{args:?}: {err}");
+        assert!(lines.last().is_some_and(|l| l.contains("--help")), "{args:?}: {err}");
+    }
+    assert!(std::fs::read_dir(scratch.path()).unwrap().next().is_none(), "nothing written");
 }
 
 #[test]
