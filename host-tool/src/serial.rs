@@ -106,8 +106,15 @@ impl SerialArray {
     fn pump(&mut self, deliver: &mut dyn FnMut(u16, u64, Message)) -> Result<bool, HostError> {
         let now = self.micros();
         let mut moved = false;
+        let names = &self.names;
         for (i, link) in self.links.iter_mut().enumerate() {
-            let bytes = read_available(link)?;
+            // A device that closes (a board unplugged or reset, a relay gone)
+            // ends the run naming its node.
+            let closed = |e: std::io::Error, link: &Link| {
+                let node = names.get(i).cloned().unwrap_or_else(|| format!("node {i}"));
+                HostError::Node(format!("{node} on {}: the link closed ({e}); no image written", link.name))
+            };
+            let bytes = read_available(link).map_err(|e| closed(e, link))?;
             moved |= !bytes.is_empty();
             let mut got = Vec::new();
             link.channel.receive(&bytes, |m| {
@@ -132,7 +139,7 @@ impl SerialArray {
                 }
                 room
             });
-            moved |= flush(link)?;
+            moved |= flush(link).map_err(|e| closed(e, link))?;
         }
         Ok(moved)
     }
@@ -254,7 +261,7 @@ fn host_hello() -> Message {
 }
 
 fn open_link(path: &str) -> Result<Link, HostError> {
-    let port = serialport::new(path, BAUD).timeout(Duration::from_millis(1)).open().map_err(|e| {
+    let port = serialport::new(path, BAUD).timeout(Duration::ZERO).open().map_err(|e| {
         let why = match e.kind {
             serialport::ErrorKind::NoDevice => "is missing".to_string(),
             serialport::ErrorKind::Io(ErrorKind::NotFound) => "is missing".to_string(),
@@ -279,7 +286,7 @@ fn open_link(path: &str) -> Result<Link, HostError> {
 }
 
 /// Writes what the device takes now; returns whether it took anything.
-fn flush(link: &mut Link) -> Result<bool, HostError> {
+fn flush(link: &mut Link) -> std::io::Result<bool> {
     if link.unsent.is_empty() {
         return Ok(false);
     }
@@ -294,23 +301,28 @@ fn flush(link: &mut Link) -> Result<bool, HostError> {
         {
             Ok(false)
         }
-        Err(e) => Err(HostError::Node(format!("the link on {} closed: {e}", link.name))),
+        Err(e) => Err(e),
     }
 }
 
-fn read_available(link: &mut Link) -> Result<Vec<u8>, HostError> {
-    let closed = |e: String| HostError::Node(format!("the link on {} closed: {e}", link.name));
-    let waiting = link.port.bytes_to_read().map_err(|e| closed(e.to_string()))?;
-    if waiting == 0 {
-        return Ok(Vec::new());
-    }
-    let mut buf = vec![0u8; waiting as usize];
+/// The bytes the device holds now (none if it holds none). The device's
+/// time-out is zero, so a read polls once and returns at once: with nothing
+/// waiting it times out, and on a device whose other end has gone (a board
+/// unplugged, an emulator ended) the poll sees the hang-up and the read
+/// fails, so the run ends naming the node instead of waiting out the
+/// time-out.
+fn read_available(link: &mut Link) -> std::io::Result<Vec<u8>> {
+    let mut buf = vec![0u8; 4096];
     match link.port.read(&mut buf) {
         Ok(n) => {
             buf.truncate(n);
             Ok(buf)
         }
-        Err(e) if e.kind() == ErrorKind::TimedOut || e.kind() == ErrorKind::WouldBlock => Ok(Vec::new()),
-        Err(e) => Err(closed(e.to_string())),
+        Err(e)
+            if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted) =>
+        {
+            Ok(Vec::new())
+        }
+        Err(e) => Err(e),
     }
 }
