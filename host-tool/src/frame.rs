@@ -1,6 +1,6 @@
 //! The frame buffer: integer pixel sums, credit accounting, loads, errors.
 
-use link_proto::{ErrorReport, LoadReport, Message, PROTOCOL_VERSION, Retire};
+use link_proto::{ErrorReport, LoadReport, Message, PROTOCOL_VERSION, Retire, SlideNote};
 use sim_board::HostEndpoint;
 
 use crate::error::HostError;
@@ -23,6 +23,17 @@ pub fn check_size(width: u16, height: u16) -> Result<(), HostError> {
         )));
     }
     Ok(())
+}
+
+/// A committed slide as the host heard of it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SlideSeen {
+    /// Arrival time of the note.
+    pub at: u64,
+    /// The node that received the slab.
+    pub node: u16,
+    /// What it reported.
+    pub note: SlideNote,
 }
 
 /// Everything the host collects during a frame.
@@ -58,8 +69,8 @@ pub struct FrameBuffer {
     pub restarted: Vec<u16>,
     /// Interval load reports: (arrival time, report).
     pub history: Vec<(u64, LoadReport)>,
-    /// Committed slides: (arrival time, receiving node, new boundary position).
-    pub slides: Vec<(u64, u16, u16)>,
+    /// Committed slides, as their receiving nodes reported them.
+    pub slides: Vec<SlideSeen>,
     /// Slides refused for capacity: (arrival time, receiving node, boundary).
     pub refused_slides: Vec<(u64, u16, u16)>,
 }
@@ -129,7 +140,7 @@ impl HostEndpoint for FrameBuffer {
                 }
             }
             Message::Load(l) => self.history.push((at, l)),
-            Message::SlideDone(d) => self.slides.push((at, node, d.boundary)),
+            Message::SlideNote(note) => self.slides.push(SlideSeen { at, node, note }),
             Message::SlideReply(r) => self.refused_slides.push((at, node, r.boundary)),
             Message::Error(e) => self.errors.push(e),
             Message::Hello(h) if h.version != PROTOCOL_VERSION => {

@@ -1,5 +1,6 @@
 //! Boundary positions over time, rebuilt from the slides the nodes reported.
 
+use crate::frame::SlideSeen;
 use crate::partition::Partition;
 
 /// One boundary position: at `time`, boundary `index` (between node rows
@@ -16,12 +17,14 @@ pub struct BoundaryAt {
     pub position: u16,
 }
 
-/// Every boundary's initial position at time 0, then one entry per slide.
-pub fn boundary_history(partition: &Partition, slides: &[(u64, u16, u16)]) -> Vec<BoundaryAt> {
+/// Every boundary's initial position at time 0, then one entry per slide,
+/// in time order. Each boundary's slides are put in the order they happened
+/// by their count (the two nodes of a boundary report over different host
+/// links, so arrival order can differ); a note that arrives before an
+/// earlier slide's is dated when that one arrived.
+pub fn boundary_history(partition: &Partition, slides: &[SlideSeen]) -> Vec<BoundaryAt> {
     let d = usize::from(partition.driving_axis);
     let nodes = partition.len();
-    let mut lo: Vec<u16> = (0..nodes).map(|n| partition.bounds(n).lo[d]).collect();
-    let mut hi: Vec<u16> = (0..nodes).map(|n| partition.bounds(n).hi[d]).collect();
     let stride = match d {
         0 => 1,
         1 => usize::from(partition.array[0]),
@@ -34,25 +37,33 @@ pub fn boundary_history(partition: &Partition, slides: &[(u64, u16, u16)]) -> Ve
         others[0] + width * others[1]
     };
     let mut out = Vec::new();
-    for (n, &position) in hi.iter().enumerate() {
+    for n in 0..nodes {
         let c = usize::from(partition.coord(n)[d]);
         if c + 1 < usize::from(partition.array[d]) {
-            out.push(BoundaryAt { time: 0, row: row_of(n), index: c, position });
+            out.push(BoundaryAt { time: 0, row: row_of(n), index: c, position: partition.bounds(n).hi[d] });
         }
     }
-    for &(time, node, boundary) in slides {
-        let n = usize::from(node);
-        let c = usize::from(partition.coord(n)[d]);
-        if boundary > hi[n] && n + stride < nodes {
-            hi[n] = boundary;
-            lo[n + stride] = boundary;
-            out.push(BoundaryAt { time, row: row_of(n), index: c, position: boundary });
-        } else if boundary < lo[n] && n >= stride {
-            lo[n] = boundary;
-            hi[n - stride] = boundary;
-            out.push(BoundaryAt { time, row: row_of(n), index: c - 1, position: boundary });
-        }
+    // Each note, under the node on the boundary's low side.
+    let mut moves: Vec<(usize, u16, u64, u16)> = slides
+        .iter()
+        .filter_map(|s| {
+            let n = usize::from(s.node);
+            let low = if s.note.high_side { n } else { n.checked_sub(stride)? };
+            (low + stride < nodes).then_some((low, s.note.count, s.at, s.note.boundary))
+        })
+        .collect();
+    moves.sort_unstable_by_key(|&(low, count, at, _)| (low, count, at));
+    let mut dated = Vec::with_capacity(moves.len());
+    let mut last = (usize::MAX, 0);
+    for (low, _, at, position) in moves {
+        let time = if last.0 == low { at.max(last.1) } else { at };
+        last = (low, time);
+        let c = usize::from(partition.coord(low)[d]);
+        dated.push(BoundaryAt { time, row: row_of(low), index: c, position });
     }
+    // Stable: each boundary's moves keep their order among equal times.
+    dated.sort_by_key(|b| b.time);
+    out.extend(dated);
     out
 }
 
@@ -108,5 +119,23 @@ mod tests {
         // Only the moves at 20 and 30 fall in [15, 35): one of them reverses.
         assert_eq!(churn(&h, 15, 35), Churn { moves: 2, reversals: 1 });
         assert_eq!(churn(&h, 50, 60), Churn::default());
+    }
+
+    #[test]
+    fn notes_that_arrive_out_of_order_are_put_back_in_order() {
+        use link_proto::SlideNote;
+        // Two nodes along x on a 16-cube grid, cut at 8. The boundary moves
+        // to 9 (node 0 took a slab), then back to 8 (node 1 took it back);
+        // node 1's note reaches the host first.
+        let p = Partition::even([16, 4, 4], [2, 1, 1], 0).unwrap();
+        let seen = |at, node, boundary, high_side, count| SlideSeen {
+            at,
+            node,
+            note: SlideNote { boundary, high_side, count },
+        };
+        let notes = [seen(50, 1, 8, false, 2), seen(70, 0, 9, true, 1)];
+        let h = boundary_history(&p, &notes);
+        let moves: Vec<(u64, u16)> = h.iter().map(|b| (b.time, b.position)).collect();
+        assert_eq!(moves, [(0, 8), (70, 9), (70, 8)]);
     }
 }

@@ -86,6 +86,25 @@ pub enum Message {
     Sync(u32),
     /// Link layer: reply to [`Message::Sync`], echoing the incarnation taken.
     SyncAck(u32),
+    /// Node to host: a slide this node received is committed (the host
+    /// rebuilds every boundary's positions from these).
+    SlideNote(SlideNote),
+}
+
+/// A committed slide, as the receiving node tells the host.
+///
+/// The two nodes of a boundary report over different host links, so their
+/// notes may reach the host in another order than the slides happened;
+/// `count` puts each boundary's notes back in order (only the boundary's low
+/// node decides its slides, one at a time, and both nodes count them).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct SlideNote {
+    /// New boundary position, in unit cubes along the driving axis.
+    pub boundary: u16,
+    /// The boundary is on the reporting node's high side (else its low side).
+    pub high_side: bool,
+    /// Slides of this boundary in this frame so far, this one included.
+    pub count: u16,
 }
 
 /// Dynamic load balancing by sliding boundaries.

@@ -108,6 +108,9 @@ pub struct SlideState {
     pub hold: u32,
     /// Slides committed as receiver this frame.
     pub committed: u32,
+    /// Slides of the boundary on each side this frame, given or taken (the
+    /// neighbour across counts the same: see `link_proto::SlideNote`).
+    pub moves: PerSide<u16>,
     /// Slides refused as receiver (capacity) this frame.
     pub refused: u32,
 }
@@ -125,6 +128,7 @@ impl SlideState {
             samples: 0,
             hold: 0,
             committed: 0,
+            moves: PerSide { lo: 0, hi: 0 },
             refused: 0,
         }
     }

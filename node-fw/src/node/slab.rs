@@ -2,7 +2,7 @@
 //! spheres to the lighter one, which grows its storage, takes them, and
 //! commits or refuses the slide as a whole.
 
-use link_proto::{ErrorCode, Message, SlideDone, SlideOffer, SlideRefusal, SlideReply, SphereMsg};
+use link_proto::{ErrorCode, Message, SlideDone, SlideNote, SlideOffer, SlideRefusal, SlideReply, SphereMsg};
 
 use crate::link::{Links, Port};
 use crate::load::Load;
@@ -120,8 +120,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             self.queue_control(Port::Host, Message::SlideReply(reply));
         } else {
             self.slide.committed += 1;
-            let note = SlideDone { boundary: incoming.boundary, spheres: done.spheres };
-            self.queue_control(Port::Host, Message::SlideDone(note));
+            let count = self.slide.moves[side].wrapping_add(1);
+            self.slide.moves[side] = count;
+            let note = SlideNote { boundary: incoming.boundary, high_side: side == Side::Hi, count };
+            self.queue_control(Port::Host, Message::SlideNote(note));
         }
     }
 
@@ -131,6 +133,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         if let Some(out) = self.slide.outgoing[side].filter(|o| o.done) {
             self.slide.outgoing[side] = None;
             if reply.refused.is_none() {
+                self.slide.moves[side] = self.slide.moves[side].wrapping_add(1);
                 let d = self.driving_axis();
                 let owned = slide::with_face(self.region.owned(), d, side, out.boundary);
                 let storage = slide::with_face(self.region.bounds(), d, side, out.boundary);
