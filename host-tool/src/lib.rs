@@ -13,6 +13,7 @@ pub mod error;
 pub mod fit;
 pub mod frame;
 pub mod history;
+pub mod links;
 pub mod numerics;
 pub mod output;
 pub mod paper;
@@ -22,6 +23,7 @@ pub mod qemu;
 pub mod reference;
 pub mod render;
 pub mod run_files;
+pub mod scaling;
 pub mod scene;
 pub mod serial;
 

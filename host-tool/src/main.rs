@@ -71,6 +71,23 @@ enum BenchCommand {
     Board(BoardBenchArgs),
     /// The paper's experiments (Figs. 7-10): CSV tables and PNG plots.
     Paper(PaperArgs),
+    /// Efficiency E = T(1) / (S T(S)) and where the busy cycles go, for
+    /// S = 1, 8, 27, 64, 216, 512 on the in-memory board: a table, CSV and PNG.
+    Scaling(ScalingArgs),
+}
+
+#[derive(Args)]
+struct ScalingArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    links: LinkArgs,
+    /// Output directory.
+    #[arg(long, value_name = "DIR", default_value = "scaling")]
+    out: PathBuf,
+    /// S = 1, 8 and 27 only (for CI).
+    #[arg(long)]
+    quick: bool,
 }
 
 #[derive(Args)]
@@ -119,6 +136,76 @@ struct SceneArgs {
     /// Image size.
     #[arg(long, value_name = "WxH", value_parser = parse_pair, default_value = "256x256")]
     size: [u16; 2],
+}
+
+/// The links of the in-memory board: a preset, and settings that override it.
+#[derive(Args, Clone)]
+struct LinkArgs {
+    /// Links of the in-memory board: f413 (NUCLEO-F413ZH boards: 100 MHz,
+    /// neighbour USARTs at 3 Mbaud, host at 921 600 baud, a byte interrupt)
+    /// or ideal (25 cycles a byte, no CPU per byte) [default: f413].
+    #[arg(long, value_name = "PRESET", value_parser = host_tool::links::preset_named)]
+    link: Option<sim_board::LinkPreset>,
+    /// Core clock of the nodes, MHz (overrides the preset's).
+    #[arg(long, value_name = "MHZ")]
+    clock_mhz: Option<f64>,
+    /// Line rate of the neighbour links, baud (10 bits a byte).
+    #[arg(long, value_name = "BAUD")]
+    baud: Option<u64>,
+    /// Line rate of the host links, baud.
+    #[arg(long, value_name = "BAUD")]
+    host_baud: Option<u64>,
+    /// How the nodes move bytes between UARTs and memory (CPU cycles a byte).
+    #[arg(long, value_enum)]
+    transfer: Option<TransferChoice>,
+}
+
+impl LinkArgs {
+    /// Whether any link setting was given.
+    fn given(&self) -> bool {
+        self.link.is_some()
+            || self.clock_mhz.is_some()
+            || self.baud.is_some()
+            || self.host_baud.is_some()
+            || self.transfer.is_some()
+    }
+
+    /// Sets `opts`'s links.
+    fn apply(&self, opts: &mut RenderOptions) -> Result<(), HostError> {
+        let clock_hz = match self.clock_mhz {
+            Some(mhz) if !mhz.is_finite() => {
+                return Err(HostError::NonFinite(format!("--clock-mhz must be a number, got {mhz}")));
+            }
+            Some(mhz) => Some((mhz * 1e6).round().clamp(0.0, u64::MAX as f64) as u64),
+            None => None,
+        };
+        let choice = host_tool::links::LinkChoice {
+            preset: self.link.unwrap_or_default(),
+            clock_hz,
+            baud: self.baud,
+            host_baud: self.host_baud,
+            transfer: self.transfer.map(|t| match t {
+                TransferChoice::Polled => sim_board::Transfer::Polled,
+                TransferChoice::Interrupt => sim_board::Transfer::Interrupt,
+                TransferChoice::Dma => sim_board::Transfer::Dma,
+            }),
+        };
+        let (link, host) = choice.specs()?;
+        opts.sim.link = link;
+        opts.sim.host_link = host;
+        opts.link_preset = choice.preset;
+        Ok(())
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum TransferChoice {
+    /// The main loop polls each UART (16 cycles a byte).
+    Polled,
+    /// An interrupt per byte (50 cycles a byte).
+    Interrupt,
+    /// DMA (no CPU cycles per byte).
+    Dma,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -186,6 +273,8 @@ enum BackendChoice {
 struct RenderArgs {
     #[command(flatten)]
     scene: SceneArgs,
+    #[command(flatten)]
+    links: LinkArgs,
     /// What runs the nodes.
     #[arg(long, value_enum, default_value = "sim")]
     backend: BackendChoice,
@@ -290,6 +379,7 @@ fn main() -> ExitCode {
             }
             .and_then(|()| if pass { Ok(()) } else { Err(HostError::Node("a stiff case failed".into())) })
         }
+        Command::Bench(BenchCommand::Scaling(args)) => bench_scaling(args),
         Command::Bench(BenchCommand::Paper(args)) => {
             let cfg = if args.quick {
                 host_tool::paper::PaperConfig::quick()
@@ -361,6 +451,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         LayoutMode::Even => Layout::Even,
         LayoutMode::Preview => Layout::Preview,
     };
+    args.links.apply(&mut opts)?;
     opts.sim.faults = args.faults;
     opts.sim.restart = args.restart_node;
     opts.sim.watchdog = args.watchdog;
@@ -393,6 +484,12 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
     if backend != Backend::Sim && (args.faults.is_some() || args.restart_node.is_some()) {
         return Err(input(
             "--faults and --restart-node inject faults into the in-memory board (--backend sim)",
+        ));
+    }
+    if backend != Backend::Sim && args.links.given() {
+        return Err(input(
+            "--link, --clock-mhz, --baud, --host-baud and --transfer model the in-memory board's links \
+             (--backend sim)",
         ));
     }
     if !matches!(backend, Backend::Serial { .. }) && !args.ports.is_empty() {
@@ -517,6 +614,27 @@ fn bench_board(args: BoardBenchArgs) -> Result<(), HostError> {
         );
     }
     println!("]}}");
+    Ok(())
+}
+
+fn bench_scaling(args: ScalingArgs) -> Result<(), HostError> {
+    let mut scene_args = args.scene.clone();
+    if scene_args.scene.is_none() && scene_args.spheres.is_none() {
+        // The issue's scene: the paper's 1000 random spheres, seed 1986.
+        scene_args.spheres = Some(1000);
+        scene_args.seed = scene_args.seed.or(Some(1986));
+    }
+    let scene = load_scene(&scene_args)?;
+    let mut base = RenderOptions::new([1, 1, 1]);
+    base.size = scene_args.size;
+    args.links.apply(&mut base)?;
+    let cfg = if args.quick {
+        host_tool::scaling::ScalingConfig::quick(base)
+    } else {
+        host_tool::scaling::ScalingConfig::full(base)
+    };
+    let table = host_tool::scaling::bench_scaling(&scene, &cfg, &args.out)?;
+    print!("{table}");
     Ok(())
 }
 

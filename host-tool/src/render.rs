@@ -11,7 +11,7 @@ use link_proto::{Balance, Boundaries, Capacity, ErrorCode, InitialRays, Message,
 use node_fw::Port;
 use node_fw::pool::class_bound;
 use node_fw::reliable::ChannelStats;
-use sim_board::{Board, HostEndpoint, RunStats, SimConfig, SimNode};
+use sim_board::{Board, Busy, HostEndpoint, LinkPreset, RunStats, SimConfig, SimNode};
 
 use crate::camera::PixelBasis;
 use crate::entry::entry_tiles;
@@ -100,6 +100,9 @@ pub struct RenderOptions {
     pub shared_slots: Option<u16>,
     /// Board costs and links.
     pub sim: SimConfig,
+    /// The preset `sim`'s links started from (for summaries; the settings
+    /// themselves are `sim.link` and `sim.host_link`).
+    pub link_preset: LinkPreset,
     /// Sliding boundaries, or `None` for the static partition.
     pub balance: Option<Balance>,
     /// Driving axis; `None` picks the paper's (most varied sphere counts).
@@ -119,6 +122,7 @@ impl RenderOptions {
             level_depth: 1,
             shared_slots: None,
             sim: SimConfig::new(array),
+            link_preset: LinkPreset::default(),
             balance: None,
             driving_axis: None,
             layout: Layout::Even,
@@ -137,6 +141,9 @@ pub struct RenderResult {
     pub stats: RunStats,
     /// Bytes each node sent, per port.
     pub bytes: Vec<[u64; 7]>,
+    /// Each node's busy cycles by what they were spent on (the in-memory
+    /// board; `None` where the transport cannot see inside the nodes).
+    pub busy: Vec<Option<Busy>>,
     /// Host wall time of the run.
     pub wall: Duration,
     /// Retransmissions and damaged frames on the links (framed mode).
@@ -157,6 +164,11 @@ pub trait Array {
     fn bytes_sent(&self, node: usize) -> [u64; 7];
     /// Resends and damaged frames on the links.
     fn link_stats(&self) -> ChannelStats;
+    /// Node `node`'s busy cycles by what they were spent on, where the
+    /// transport can see them.
+    fn busy(&self, _node: usize) -> Option<Busy> {
+        None
+    }
 }
 
 impl Array for Board {
@@ -182,6 +194,10 @@ impl Array for Board {
 
     fn link_stats(&self) -> ChannelStats {
         Board::link_stats(self)
+    }
+
+    fn busy(&self, node: usize) -> Option<Busy> {
+        (node < self.len()).then(|| Board::busy(self, node))
     }
 }
 
@@ -325,7 +341,9 @@ pub fn render_on(
     array.run(&mut frame).map_err(|e| e.context("collecting loads failed"))?;
     node_errors(&frame, &partition)?;
     let bytes = (0..array.nodes()).map(|i| array.bytes_sent(i)).collect();
-    Ok(RenderResult { frame, partition, stats, bytes, wall: started.elapsed(), links: array.link_stats() })
+    let busy = (0..array.nodes()).map(|i| array.busy(i)).collect();
+    let links = array.link_stats();
+    Ok(RenderResult { frame, partition, stats, bytes, busy, wall: started.elapsed(), links })
 }
 
 /// Sends the scene, assignments and render start to every node.

@@ -5,12 +5,34 @@
 use std::collections::BTreeMap;
 
 use serde_json::json;
+use sim_board::Busy;
 
 use crate::error::HostError;
 use crate::history::boundary_history;
 use crate::plot::{Chart, Series, png};
 use crate::render::{RenderOptions, RenderResult};
 use crate::scene::Scene;
+
+/// Busy cycles by kind, and waiting.
+fn busy_json(b: &Busy, waiting: u64) -> serde_json::Value {
+    json!({"compute": b.compute, "setup": b.setup, "messaging": b.messaging, "waiting": waiting})
+}
+
+/// Per neighbour port and the host port: bytes sent, and the fraction of
+/// the frame's makespan the link's wire spent carrying them.
+fn ports_json(opts: &RenderOptions, r: &RenderResult, id: usize) -> serde_json::Value {
+    let names = ["+x", "-x", "+y", "-y", "+z", "-z", "host"];
+    let mut ports = serde_json::Map::new();
+    for (p, name) in names.iter().enumerate() {
+        let bytes = r.bytes[id][p];
+        let spec = if p == 6 { &opts.sim.host_link } else { &opts.sim.link };
+        let utilisation = (bytes * spec.byte_cycles()) as f64 / r.frame.makespan.max(1) as f64;
+        if bytes > 0 {
+            ports.insert(name.to_string(), json!({"bytes": bytes, "utilisation": utilisation}));
+        }
+    }
+    serde_json::Value::Object(ports)
+}
 
 /// max / mean of the nodes' running time.
 pub fn imbalance(r: &RenderResult) -> f64 {
@@ -22,6 +44,9 @@ pub fn imbalance(r: &RenderResult) -> f64 {
 /// The run summary: the frame's totals, the options, the links, each node.
 pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String {
     let f = &r.frame;
+    // The in-memory board models its links and sees inside its nodes; boards
+    // have links of their own, and their busy time is their own business.
+    let modelled = !r.busy.is_empty() && r.busy.iter().all(Option::is_some);
     let nodes: Vec<_> = f
         .loads
         .iter()
@@ -44,9 +69,16 @@ pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> St
                 "running": l.running, "waiting": l.waiting, "rays": l.rays,
                 "sphere_tests": l.sphere_tests, "cube_steps": l.cube_steps, "refused": l.refused,
                 "bytes_sent": r.bytes[id].iter().sum::<u64>(),
+                "busy": r.busy.get(id).copied().flatten().map(|b| busy_json(&b, l.waiting)),
+                "ports": modelled.then(|| ports_json(opts, r, id)),
             })
         })
         .collect();
+    let total = r.busy.iter().flatten().fold(Busy::default(), |mut a, b| {
+        a += *b;
+        a
+    });
+    let waiting: u64 = f.loads.iter().flatten().map(|l| l.waiting).sum();
     let v = json!({
         "makespan": f.makespan,
         "imbalance": imbalance(r),
@@ -68,6 +100,18 @@ pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> St
         "slides": f.slides.len(),
         "refused_slides": f.refused_slides.len(),
         "rounds": r.stats.rounds,
+        // Busy cycles of all nodes by what they were spent on, and their
+        // waiting; `messaging_share` is messaging over all busy cycles.
+        "busy": modelled.then(|| {
+            let mut v = busy_json(&total, waiting);
+            v["messaging_share"] = json!(total.messaging as f64 / total.total().max(1) as f64);
+            v
+        }),
+        "link": modelled.then(|| json!({
+            "preset": opts.link_preset.name(),
+            "neighbour": crate::links::spec_json(&opts.sim.link),
+            "host": crate::links::spec_json(&opts.sim.host_link),
+        })),
         "faults": opts.sim.faults.map(|f| json!({"corrupt": f.corrupt, "drop": f.drop, "dup": f.dup, "delay": f.delay, "seed": f.seed})),
         "retransmissions": r.links.retransmitted,
         "corrupted_frames": r.links.corrupted,

@@ -193,6 +193,22 @@ fn default_render_writes_image_loads_and_summary() {
     let refused: u64 =
         summary["nodes"].as_array().unwrap().iter().map(|n| n["refused"].as_u64().unwrap()).sum();
     assert_eq!(summary["rays_refused"].as_u64(), Some(refused));
+    // The links it ran on, and where the busy cycles went.
+    assert_eq!(summary["link"]["preset"], "f413");
+    assert_eq!(summary["link"]["neighbour"]["wire_cycles_per_byte"], 334);
+    let busy = &summary["busy"];
+    let kinds = ["compute", "setup", "messaging"].map(|k| busy[k].as_u64().unwrap());
+    let share = busy["messaging_share"].as_f64().unwrap();
+    assert!((share - kinds[2] as f64 / kinds.iter().sum::<u64>() as f64).abs() < 1e-9);
+    for n in summary["nodes"].as_array().unwrap() {
+        let node_busy: u64 =
+            ["compute", "setup", "messaging"].iter().map(|k| n["busy"][k].as_u64().unwrap()).sum();
+        assert!(node_busy > 0);
+        let host = &n["ports"]["host"];
+        assert!(host["bytes"].as_u64().unwrap() > 0 && host["utilisation"].as_f64().unwrap() > 0.0);
+        let sent: u64 = n["ports"].as_object().unwrap().values().map(|p| p["bytes"].as_u64().unwrap()).sum();
+        assert_eq!(Some(sent), n["bytes_sent"].as_u64());
+    }
     let csv = std::fs::read_to_string(dir.join("loads.csv")).unwrap();
     assert_eq!(csv.lines().count(), 9);
     let png = image::open(dir.join("render.png")).unwrap();
@@ -249,4 +265,61 @@ fn a_node_restarting_mid_render_is_named_and_no_image_is_written() {
     // noticed by the host's channel and the neighbours' alike.
     let framed = [&args[..], &["--faults", "corrupt=0.01,drop=0.01"]].concat();
     fails("restart-framed", &framed, None, 30, "node 5 (1,0,1) restarted mid-render");
+}
+
+/// `bench scaling --quick`: E and the messaging share as the CSV's own
+/// columns say they should be (E = T(1) / (S T(S)), messaging over busy).
+#[test]
+fn bench_scaling_reports_efficiency_from_its_makespans() {
+    let scratch = scratch("scaling");
+    let dir = scratch.path();
+    let args = [
+        "bench",
+        "scaling",
+        "--quick",
+        "--spheres",
+        "60",
+        "--size",
+        "32x32",
+        "--link",
+        "ideal",
+        "--out",
+        "s",
+    ];
+    let out = host_tool(dir, &args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let csv = std::fs::read_to_string(dir.join("s/scaling.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.iter().map(|r| r[col("nodes")]).collect::<Vec<_>>(), ["1", "8", "8", "27", "27"]);
+    let num = |r: &Vec<&str>, name: &str| r[col(name)].parse::<f64>().unwrap();
+    let t1 = num(&rows[0], "makespan");
+    for r in &rows {
+        let e = t1 / (num(r, "nodes") * num(r, "makespan"));
+        assert!((num(r, "efficiency") - e).abs() < 1e-4, "{r:?}");
+        let busy = num(r, "compute") + num(r, "setup") + num(r, "messaging");
+        assert!((num(r, "messaging_share") - num(r, "messaging") / busy).abs() < 1e-4, "{r:?}");
+    }
+    assert!(dir.join("s/scaling.png").is_file() && dir.join("s/scaling.md").is_file());
+}
+
+#[test]
+fn link_settings_are_checked() {
+    fails("baud", &["render", "--size", "8x8", "--baud", "10"], None, 17, "--baud must be from 300");
+    fails(
+        "clock",
+        &["render", "--size", "8x8", "--clock-mhz", "5000"],
+        None,
+        17,
+        "--clock-mhz must be from 1 to 1000",
+    );
+    let out = host_tool(scratch("preset").path(), &["render", "--size", "8x8", "--link", "fast"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).starts_with(
+        "error: invalid value 'fast' for '--link <PRESET>': unknown link preset 'fast' (one of f413, ideal)"
+    ));
+    let qemu = ["render", "--size", "8x8", "--backend", "qemu", "--link", "ideal"];
+    fails("qemu-link", &qemu, None, 17, "model the in-memory board's links");
 }

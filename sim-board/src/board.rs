@@ -2,7 +2,7 @@
 
 use std::fmt;
 
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, VecDeque};
 
 use link_proto::Message;
 use node_fw::framed::FramedLinks;
@@ -10,8 +10,10 @@ use node_fw::reliable::{Channel, ChannelStats};
 use node_fw::{Node, Port};
 use rayon::prelude::*;
 
-use crate::cost::{CostModel, LinkModel};
+use crate::cost::{Busy, CostModel, LinkModel};
 use crate::faults::{FaultRng, Faults};
+use crate::link_spec::{LinkPreset, LinkSpec};
+use crate::sim_links::Stamped;
 use crate::slot::Slot;
 
 /// A node's links when they are byte streams: reliable channels, window 8.
@@ -33,9 +35,9 @@ pub struct SimConfig {
     /// Node work costs.
     pub cost: CostModel,
     /// Node-to-node links.
-    pub link: LinkModel,
+    pub link: LinkSpec,
     /// Node-to-host links.
-    pub host_link: LinkModel,
+    pub host_link: LinkSpec,
     /// When set, every link carries bytes (CRC-checked frames through the
     /// node firmware's reliable channels) through this fault injector.
     pub faults: Option<Faults>,
@@ -47,13 +49,18 @@ pub struct SimConfig {
 }
 
 impl SimConfig {
-    /// Default costs and links for an array.
+    /// Default costs and links ([`LinkPreset::default`]) for an array.
     pub fn new(array: [u16; 3]) -> Self {
+        Self::with_links(array, LinkPreset::default())
+    }
+
+    /// Default costs and the links of `preset` for an array.
+    pub fn with_links(array: [u16; 3], preset: LinkPreset) -> Self {
         Self {
             array,
             cost: CostModel::default(),
-            link: LinkModel::default(),
-            host_link: LinkModel { capacity: 64, ..LinkModel::default() },
+            link: preset.neighbour(),
+            host_link: preset.host(),
             faults: None,
             restart: None,
             watchdog: 200_000_000,
@@ -128,6 +135,14 @@ pub struct RunStats {
     pub rounds: u64,
 }
 
+/// A node's message or frame on its way to the host.
+enum ToHost {
+    /// A whole message (links carry messages).
+    Message(Message),
+    /// A frame's bytes, for the host's reliable channel (framed mode).
+    Frame(Vec<u8>),
+}
+
 /// Inserts a frame into a wire kept in arrival order (delays can reorder).
 fn arrive(wire: &mut VecDeque<(u64, Vec<u8>)>, at: u64, bytes: Vec<u8>) {
     let pos = wire.iter().rposition(|(t, _)| *t <= at).map_or(0, |i| i + 1);
@@ -171,6 +186,13 @@ pub struct Board {
     host_rng: Vec<FaultRng>,
     /// Arrival time of the latest node-to-host message.
     last_to_host: u64,
+    /// What nodes sent the host, by arrival time (then node, then order of
+    /// sending): handed over once the board's time reaches it, so the host
+    /// sees messages in the order they arrive even when a slow host link
+    /// queues them far ahead of the round that sent them.
+    to_host: BTreeMap<(u64, u16, u64), ToHost>,
+    /// Order of sending, for `to_host`'s keys.
+    to_host_seq: u64,
     restarted: bool,
 }
 
@@ -194,6 +216,7 @@ impl Board {
             slots.push(Slot {
                 node: nodes.next().unwrap_or_else(|| boxed_node(id)),
                 clock: 0,
+                busy: Busy::default(),
                 ports: Default::default(),
                 wired,
                 miswired: None,
@@ -214,6 +237,8 @@ impl Board {
             neighbours,
             rounds: 0,
             last_to_host: 0,
+            to_host: BTreeMap::new(),
+            to_host_seq: 0,
             restarted: false,
         }
     }
@@ -251,6 +276,11 @@ impl Board {
         std::array::from_fn(|p| self.slots[i].ports[p].bytes)
     }
 
+    /// Node `i`'s busy cycles so far, by what they were spent on.
+    pub fn busy(&self, i: usize) -> Busy {
+        self.slots[i].busy
+    }
+
     /// Queues a host-to-node message; it arrives at the node's current time.
     pub fn send(&mut self, node: usize, msg: Message) {
         if let Some(backlog) = self.host_backlog.get_mut(node) {
@@ -259,7 +289,8 @@ impl Board {
         }
         let slot = &mut self.slots[node];
         let at = slot.clock;
-        slot.ports[Port::Host.index()].inbox.push_back((at, msg));
+        let len = crate::sim_links::frame_len(&msg) as u64;
+        slot.ports[Port::Host.index()].inbox.push_back(Stamped { at, msg, len });
     }
 
     /// Runs until the host is finished; fails on a stall or a miswired send.
@@ -269,7 +300,8 @@ impl Board {
         while !host.finished() {
             let host_busy = self.host_channels.iter().any(Channel::busy)
                 || self.host_backlog.iter().any(|b| !b.is_empty());
-            let next = self.slots.iter().filter_map(Slot::next_event).min();
+            let arriving = self.to_host.keys().next().map(|&(at, _, _)| at);
+            let next = self.slots.iter().filter_map(Slot::next_event).chain(arriving).min();
             let Some(start) = next.or(host_busy.then_some(now)) else {
                 let nodes_pending = self.slots.iter().filter(|s| s.node.pending()).count();
                 return Err(SimError::Deadlock { at: now, nodes_pending });
@@ -291,8 +323,9 @@ impl Board {
                 return Err(SimError::Miswired { node: node as u16, port });
             }
             let in_flight = self.deliver(host, end);
-            let quiet =
-                self.slots.iter().all(|s| s.next_arrival().is_none() && !s.channels_busy()) && !host_busy;
+            let quiet = self.slots.iter().all(|s| s.next_arrival().is_none() && !s.channels_busy())
+                && !host_busy
+                && self.to_host.is_empty();
             // A node whose clock ran past this round (a long poll) has not had
             // its turn yet: the array is stuck only once no node is ahead.
             let ahead = self.slots.iter().any(|s| s.next_event().is_some_and(|t| t >= end));
@@ -346,7 +379,6 @@ impl Board {
     /// returns whether any message moved.
     fn deliver(&mut self, host: &mut impl HostEndpoint, now: u64) -> bool {
         let mut moved = self.deliver_frames(host, now);
-        let mut to_host = Vec::new();
         for i in 0..self.slots.len() {
             for p in 0..7 {
                 let out = std::mem::take(&mut self.slots[i].ports[p].outbox);
@@ -355,7 +387,9 @@ impl Board {
                 }
                 moved = true;
                 if p == Port::Host.index() {
-                    to_host.extend(out.into_iter().map(|(at, m)| (at, i as u16, m)));
+                    for m in out {
+                        self.send_to_host(m.at, i, ToHost::Message(m.msg));
+                    }
                     continue;
                 }
                 let Some(j) = self.neighbours[i][p] else { continue };
@@ -363,15 +397,45 @@ impl Board {
                 self.slots[j].ports[back].inbox.extend(out);
             }
         }
-        // The host takes messages in arrival order (ties by node), whatever the threads did.
-        to_host.sort_by_key(|(at, node, _)| (*at, *node));
-        for (at, node, msg) in to_host {
-            if progresses(&msg) {
-                self.last_to_host = self.last_to_host.max(at);
-            }
-            host.receive(node, at, msg);
-        }
+        self.hand_to_host(host, now);
         moved
+    }
+
+    /// Queues what node `node` sent the host, to arrive at `at`.
+    fn send_to_host(&mut self, at: u64, node: usize, what: ToHost) {
+        self.to_host_seq += 1;
+        self.to_host.insert((at, node as u16, self.to_host_seq), what);
+    }
+
+    /// Hands the host what has arrived by `now`, in arrival order (ties by
+    /// node), whatever the threads did: messages to it, frames to its
+    /// channel for the node.
+    fn hand_to_host(&mut self, host: &mut impl HostEndpoint, now: u64) {
+        while let Some(entry) = self.to_host.first_entry() {
+            let (at, node, _) = *entry.key();
+            if at > now {
+                break;
+            }
+            // Progress is a message delivered to the host, not a frame resent.
+            let last = &mut self.last_to_host;
+            let mut take = |m: Message| {
+                if progresses(&m) {
+                    *last = (*last).max(at);
+                }
+                host.receive(node, at, m);
+            };
+            match entry.remove() {
+                ToHost::Message(msg) => take(msg),
+                ToHost::Frame(bytes) => {
+                    if let Some(channel) = self.host_channels.get_mut(usize::from(node)) {
+                        channel.receive(&bytes, |m| {
+                            take(m);
+                            true
+                        });
+                    }
+                }
+            }
+        }
     }
 
     /// Resets the configured node to a fresh firmware state (and fresh link
@@ -402,14 +466,13 @@ impl Board {
         }
         let faults = self.config.faults.unwrap_or_default();
         let mut moved = false;
-        let mut to_host: Vec<(u64, usize, Vec<u8>)> = Vec::new();
         for i in 0..self.slots.len() {
             for p in 0..7 {
                 let out = std::mem::take(&mut self.slots[i].ports[p].wire_out);
                 moved |= !out.is_empty();
                 for (at, bytes) in out {
                     if p == Port::Host.index() {
-                        to_host.push((at, i, bytes));
+                        self.send_to_host(at, i, ToHost::Frame(bytes));
                     } else if let Some(j) = self.neighbours[i][p] {
                         let back = Port::NEIGHBOURS[p].opposite().index();
                         arrive(&mut self.slots[j].ports[back].wire, at, bytes);
@@ -417,18 +480,7 @@ impl Board {
                 }
             }
         }
-        to_host.sort_by_key(|(at, node, _)| (*at, *node));
-        for (at, node, bytes) in to_host {
-            // Progress is a message delivered to the host, not a frame resent.
-            let last = &mut self.last_to_host;
-            self.host_channels[node].receive(&bytes, |m| {
-                if progresses(&m) {
-                    *last = (*last).max(at);
-                }
-                host.receive(node as u16, at, m);
-                true
-            });
-        }
+        self.hand_to_host(host, now);
         let latency = self.config.host_link.latency;
         for node in 0..self.host_channels.len() {
             let channel = &mut self.host_channels[node];
@@ -456,10 +508,15 @@ impl Board {
 }
 
 /// Whether a message to the host shows the frame moving (periodic load
-/// reports do not: they keep coming from a stuck array).
+/// reports do not: they keep coming from a stuck array; a node's final
+/// report, the answer to `Finish`, does).
 fn progresses(msg: &Message) -> bool {
-    // Boundaries may slide for ever while rays are stuck: not progress.
-    !matches!(msg, Message::Load(_) | Message::SlideDone(_) | Message::SlideReply(_))
+    match msg {
+        Message::Load(l) => l.interval == node_fw::node::FINAL_INTERVAL,
+        // Boundaries may slide for ever while rays are stuck: not progress.
+        Message::SlideNote(_) | Message::SlideReply(_) => false,
+        _ => true,
+    }
 }
 
 /// Resend time-out of the reliable channels: a few round trips of the slowest
@@ -467,7 +524,10 @@ fn progresses(msg: &Message) -> bool {
 /// poll that handles a full inbox on every port and does its costliest work.
 fn channel_timeout(config: &SimConfig) -> u64 {
     let frame = link_proto::MAX_FRAME_LEN as u64;
-    let trip = |l: &LinkModel| 2 * (l.latency + frame * l.byte);
+    let trip = |l: &LinkSpec| {
+        let l: LinkModel = l.model();
+        2 * (l.latency + frame * (l.byte + l.byte_cpu))
+    };
     let c = &config.cost;
     let work = c.shade.max(c.create).max(c.trace + WALK_CUBES * c.cube_step);
     let poll = 7 * SIM_INBOX as u64 * c.ray_message.max(c.short_message) + work;

@@ -54,32 +54,66 @@ impl Default for CostModel {
 impl CostModel {
     /// Cycles for one poll's work (at least one if anything was done).
     pub fn charge(&self, w: &Work) -> u64 {
-        let c = u64::from(w.cube_steps) * self.cube_step
-            + u64::from(w.sphere_tests) * self.sphere_test
-            + u64::from(w.traces) * self.trace
-            + u64::from(w.shades) * self.shade
-            + u64::from(w.created) * self.create
-            + u64::from(w.rays_received + w.rays_sent) * self.ray_message
-            + u64::from(w.received + w.sent - w.rays_received - w.rays_sent) * self.short_message;
-        c.max(u64::from(w.is_busy()))
+        self.split(w).total().max(u64::from(w.is_busy()))
+    }
+
+    /// Cycles for one poll's work, by what they were spent on.
+    pub fn split(&self, w: &Work) -> Busy {
+        let short = w.received + w.sent - w.rays_received - w.rays_sent;
+        Busy {
+            compute: u64::from(w.cube_steps) * self.cube_step
+                + u64::from(w.sphere_tests) * self.sphere_test
+                + u64::from(w.shades) * self.shade
+                + u64::from(w.created) * self.create,
+            setup: u64::from(w.traces) * self.trace,
+            messaging: u64::from(w.rays_received + w.rays_sent) * self.ray_message
+                + u64::from(short) * self.short_message,
+        }
     }
 }
 
-/// A link's timing: serialisation per byte, then a fixed latency.
+/// A node's busy cycles by what they were spent on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Busy {
+    /// Walking cubes, testing spheres, shading hits and creating initial rays:
+    /// the work a single node would do too.
+    pub compute: u64,
+    /// Setting up walks: checking a ray that arrived or was spawned and
+    /// resuming its line.
+    pub setup: u64,
+    /// Handling messages (framing, checks, the reliable channel) and moving
+    /// their bytes between the UARTs and memory.
+    pub messaging: u64,
+}
+
+impl Busy {
+    /// All busy cycles.
+    pub fn total(&self) -> u64 {
+        self.compute + self.setup + self.messaging
+    }
+}
+
+impl std::ops::AddAssign for Busy {
+    fn add_assign(&mut self, other: Busy) {
+        self.compute += other.compute;
+        self.setup += other.setup;
+        self.messaging += other.messaging;
+    }
+}
+
+/// A link's timing and what its bytes cost the node's CPU. Built from a
+/// clock, a line rate and a way of moving bytes by [`crate::LinkSpec`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LinkModel {
     /// Cycles to put one byte on the wire.
     pub byte: u64,
+    /// Cycles of the node's CPU to move one byte between the UART and
+    /// memory, paid by the sender and again by the receiver.
+    pub byte_cpu: u64,
     /// Cycles from the last byte sent to the message's arrival.
     pub latency: u64,
     /// Messages a link holds before the sender sees it full.
     pub capacity: usize,
-}
-
-impl Default for LinkModel {
-    fn default() -> Self {
-        Self { byte: 25, latency: 2_000, capacity: 8 }
-    }
 }
 
 #[cfg(test)]
@@ -97,5 +131,26 @@ mod tests {
         let free = CostModel { cube_step: 0, ..c };
         assert_eq!(free.charge(&Work { cube_steps: 5, ..Work::default() }), 1);
         assert_eq!(c.charge(&Work::default()), 0);
+    }
+
+    #[test]
+    fn the_split_adds_up_to_the_charge() {
+        let c = CostModel::default();
+        let w = Work {
+            cube_steps: 7,
+            sphere_tests: 3,
+            traces: 2,
+            shades: 1,
+            created: 1,
+            received: 5,
+            sent: 4,
+            rays_received: 2,
+            rays_sent: 1,
+        };
+        let split = c.split(&w);
+        assert_eq!(split.compute, 7 * 115 + 3 * 224 + 7_758 + 3_232);
+        assert_eq!(split.setup, 2 * 768);
+        assert_eq!(split.messaging, 3 * 2_551 + 6 * 1_232);
+        assert_eq!(split.total(), c.charge(&w));
     }
 }

@@ -12,9 +12,11 @@
 pub mod board;
 pub mod cost;
 pub mod faults;
+pub mod link_spec;
 pub mod sim_links;
 mod slot;
 
 pub use board::{Board, HostEndpoint, RunStats, SimConfig, SimError, SimNode};
-pub use cost::{CostModel, LinkModel};
+pub use cost::{Busy, CostModel, LinkModel};
 pub use faults::Faults;
+pub use link_spec::{LinkPreset, LinkSpec, Transfer};

@@ -5,8 +5,16 @@ use std::collections::VecDeque;
 use link_proto::{MAX_FRAME_LEN, Message, encode_frame};
 use node_fw::{Links, Port};
 
-/// A message in a link, stamped with its arrival time.
-pub type Stamped = (u64, Message);
+/// A message in a link, stamped with its arrival time and its length as a frame.
+#[derive(Debug, Clone)]
+pub struct Stamped {
+    /// Virtual time of arrival.
+    pub at: u64,
+    /// The message.
+    pub msg: Message,
+    /// Bytes it takes on the wire.
+    pub len: u64,
+}
 
 /// Per-port state a node owns: what has arrived, what it sent this round.
 #[derive(Debug, Default)]
@@ -41,13 +49,24 @@ pub struct SimLinks<'a> {
     pub host_link: crate::cost::LinkModel,
     /// Set when the node tried to send through a port with no neighbour.
     pub miswired: Option<Port>,
+    /// CPU cycles spent moving the bytes of the messages sent and taken.
+    pub byte_cpu: u64,
+}
+
+impl SimLinks<'_> {
+    fn model(&self, port: Port) -> crate::cost::LinkModel {
+        if port == Port::Host { self.host_link } else { self.link }
+    }
 }
 
 impl Links for SimLinks<'_> {
     fn recv(&mut self, port: Port) -> Option<Message> {
+        let byte_cpu = self.model(port).byte_cpu;
         let inbox = &mut self.ports.get_mut(port.index())?.inbox;
-        if inbox.front().is_some_and(|(at, _)| *at <= self.now) {
-            inbox.pop_front().map(|(_, m)| m)
+        if inbox.front().is_some_and(|m| m.at <= self.now) {
+            let m = inbox.pop_front()?;
+            self.byte_cpu += m.len * byte_cpu;
+            Some(m.msg)
         } else {
             None
         }
@@ -58,7 +77,7 @@ impl Links for SimLinks<'_> {
             self.miswired = Some(port);
             return Err(msg);
         }
-        let model = if port == Port::Host { self.host_link } else { self.link };
+        let model = self.model(port);
         let Some(state) = self.ports.get_mut(port.index()) else { return Err(msg) };
         if state.occupancy + state.outbox.len() >= model.capacity {
             return Err(msg);
@@ -67,7 +86,8 @@ impl Links for SimLinks<'_> {
         let start = self.now.max(state.busy_until);
         state.busy_until = start + bytes * model.byte;
         state.bytes += bytes;
-        state.outbox.push((state.busy_until + model.latency, msg));
+        state.outbox.push(Stamped { at: state.busy_until + model.latency, msg, len: bytes });
+        self.byte_cpu += bytes * model.byte_cpu;
         Ok(())
     }
 }

@@ -5,7 +5,7 @@
 use node_fw::Port;
 
 use crate::board::{SimConfig, SimFramed, SimNode};
-use crate::cost::LinkModel;
+use crate::cost::{Busy, LinkModel};
 use crate::faults::{FaultRng, Faults};
 use crate::sim_links::{PortState, SimLinks};
 
@@ -14,6 +14,8 @@ pub(crate) struct Slot {
     pub(crate) node: Box<SimNode>,
     /// The node's own virtual time (it may run ahead within a round).
     pub(crate) clock: u64,
+    /// Busy cycles so far, by what they were spent on.
+    pub(crate) busy: Busy,
     /// Per port: messages or bytes in flight and the wire's occupancy.
     pub(crate) ports: [PortState; 7],
     /// Which ports have a node (or the host) at the other end.
@@ -28,7 +30,7 @@ pub(crate) struct Slot {
 impl Slot {
     /// When the earliest message or frame waiting for this node arrives.
     pub(crate) fn next_arrival(&self) -> Option<u64> {
-        let messages = self.ports.iter().filter_map(|p| p.inbox.front().map(|(at, _)| *at));
+        let messages = self.ports.iter().filter_map(|p| p.inbox.front().map(|m| m.at));
         let bytes = self.ports.iter().filter_map(|p| p.wire.front().map(|(at, _)| *at));
         messages.chain(bytes).min()
     }
@@ -58,22 +60,31 @@ impl Slot {
                 ports: &mut self.ports,
                 wired: self.wired,
                 now: self.clock,
-                link: config.link,
-                host_link: config.host_link,
+                link: config.link.model(),
+                host_link: config.host_link.model(),
                 miswired: None,
+                byte_cpu: 0,
             };
             let work = self.node.poll(self.clock, &mut links);
-            self.miswired = self.miswired.or(links.miswired);
-            worked |= self.advance(&work, end, config);
+            let (miswired, byte_cpu) = (links.miswired, links.byte_cpu);
+            self.miswired = self.miswired.or(miswired);
+            worked |= self.advance(&work, byte_cpu, end, config);
         }
         worked
     }
 
-    /// Moves the clock past a poll: by the work's cost, or, idle, to the next
-    /// arrival in this round or the round's end. Returns whether work was done.
-    fn advance(&mut self, work: &node_fw::Work, end: u64, config: &SimConfig) -> bool {
+    /// Moves the clock past a poll: by the work's cost and the CPU cycles its
+    /// bytes took (`byte_cpu`), or, idle, to the next arrival in this round or
+    /// the round's end. Returns whether work was done.
+    ///
+    /// A poll that did no work of the node's (only acknowledgements moved)
+    /// is not charged its bytes: the node's load meter counts it as waiting.
+    fn advance(&mut self, work: &node_fw::Work, byte_cpu: u64, end: u64, config: &SimConfig) -> bool {
         if work.is_busy() {
-            self.clock += config.cost.charge(work);
+            let mut split = config.cost.split(work);
+            split.messaging += byte_cpu;
+            self.busy += split;
+            self.clock += split.total().max(1);
             return true;
         }
         self.clock = match self.next_arrival() {
@@ -86,13 +97,17 @@ impl Slot {
     /// Framed mode: bytes in, node poll through its reliable channels, bytes out.
     fn run_framed(&mut self, end: u64, config: &SimConfig) -> bool {
         let faults = config.faults.unwrap_or_default();
+        let (link, host_link) = (config.link.model(), config.host_link.model());
+        let model = |port: Port| if port == Port::Host { host_link } else { link };
         let mut worked = false;
         while self.clock < end {
             let Some(framed) = self.framed.as_mut() else { return worked };
+            let mut byte_cpu = 0;
             for port in Port::ALL {
                 let wire = &mut self.ports[port.index()].wire;
                 while wire.front().is_some_and(|(at, _)| *at <= self.clock) {
                     if let Some((_, bytes)) = wire.pop_front() {
+                        byte_cpu += bytes.len() as u64 * model(port).byte_cpu;
                         framed.ingest(port, &bytes);
                     }
                 }
@@ -106,11 +121,14 @@ impl Slot {
                     miswired = Some(port);
                     return false;
                 }
-                let model = if port == Port::Host { config.host_link } else { config.link };
-                write_frame(&mut ports[p], &mut rng[p], &faults, model, clock, bytes)
+                let written = write_frame(&mut ports[p], &mut rng[p], &faults, model(port), clock, bytes);
+                if written {
+                    byte_cpu += bytes.len() as u64 * model(port).byte_cpu;
+                }
+                written
             });
             self.miswired = self.miswired.or(miswired);
-            worked |= self.advance(&work, end, config);
+            worked |= self.advance(&work, byte_cpu, end, config);
         }
         worked
     }

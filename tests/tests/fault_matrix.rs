@@ -1,5 +1,6 @@
-//! Link faults with sliding boundaries, as a property: over fault rates x
-//! balancing x short load intervals x driving axes x array shapes, every
+//! Link faults with sliding boundaries, as a property: over link presets x
+//! fault rates x balancing x short load intervals x driving axes x array
+//! shapes, every
 //! render finishes, loses no ray, and gives the image of the single-loop
 //! renderer. The tests of faults and of sliding apart ran at the default
 //! interval, which hid a node failing on a neighbour's load report that came
@@ -14,6 +15,7 @@ use host_tool::scene::Scene;
 use link_proto::{Balance, SlidePolicy};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed, TestCaseError, TestRunner};
+use sim_board::{LinkPreset, SimConfig};
 
 /// The generator's seed unless `FAULT_MATRIX_SEED` says otherwise.
 const SEED: u64 = 25;
@@ -30,6 +32,7 @@ enum Balancing {
 
 #[derive(Debug, Clone)]
 struct Case {
+    links: LinkPreset,
     array: [u16; 3],
     axis: u8,
     balancing: Balancing,
@@ -47,18 +50,11 @@ fn case() -> impl Strategy<Value = Case> {
     let balancing =
         prop_oneof![Just(Balancing::Static), Just(Balancing::Paper), Just(Balancing::Proportional)];
     let rate = prop_oneof![Just(0.0), 0.0..0.1];
-    (
-        array,
-        0u8..3,
-        balancing,
-        20_000u64..600_000,
-        rate.clone(),
-        rate.clone(),
-        rate.clone(),
-        rate,
-        any::<u64>(),
-    )
-        .prop_map(|(array, axis, balancing, interval, corrupt, drop, dup, delay, fault_seed)| Case {
+    let links = prop_oneof![Just(LinkPreset::Ideal), Just(LinkPreset::F413)];
+    let fault_rates = (rate.clone(), rate.clone(), rate.clone(), rate);
+    (links, array, 0u8..3, balancing, 20_000u64..600_000, fault_rates, any::<u64>()).prop_map(
+        |(links, array, axis, balancing, interval, (corrupt, drop, dup, delay), fault_seed)| Case {
+            links,
             array,
             axis,
             balancing,
@@ -68,7 +64,8 @@ fn case() -> impl Strategy<Value = Case> {
             dup,
             delay,
             fault_seed,
-        })
+        },
+    )
 }
 
 fn env_or<T: std::str::FromStr>(name: &str, default: T) -> T {
@@ -88,6 +85,7 @@ fn faults_with_sliding_keep_the_image_over_arrays_axes_and_intervals() {
     let resends = std::cell::Cell::new(0);
     let result = runner.run(&case(), |c| {
         let mut opts = RenderOptions::new(c.array);
+        opts.sim = SimConfig::with_links(c.array, c.links);
         opts.size = SIZE;
         opts.driving_axis = Some(c.axis);
         let policy = match c.balancing {

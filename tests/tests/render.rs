@@ -275,6 +275,8 @@ fn a_slide_the_receiver_cannot_hold_is_refused_and_reported() {
     let size = [24, 24];
     let mut opts = RenderOptions::new([2, 1, 1]);
     opts.size = size;
+    // The loads that call for the slide come from the ideal links' timing.
+    opts.sim = sim_board::SimConfig::with_links([2, 1, 1], sim_board::LinkPreset::Ideal);
     // With the paper's regular tiles this scene makes a node offer a slab its
     // neighbour cannot hold; with entry tiles the loads stay close enough that
     // no such slide is offered, so the test keeps the paper's mode.
@@ -348,4 +350,70 @@ fn lossy_links_keep_the_image_bit_identical() {
     let r = render_sim(&s, &opts).expect("finishes");
     assert!(r.frame.sums == want.sums, "duplicates and delays changed the image");
     assert_eq!(r.frame.rays_created, r.frame.rays_terminated);
+}
+
+/// The links' model moves time, never pixels: every preset and byte
+/// transfer renders the single-loop image, the nodes' compute and set-up
+/// are the same work whatever the links, only messaging grows with the
+/// CPU a byte costs, and each node's busy split adds up to the running time
+/// it reported itself.
+#[test]
+fn link_presets_change_time_not_the_image() {
+    use sim_board::{LinkPreset, LinkSpec, SimConfig, Transfer};
+    let s = scene(0.6, 3);
+    let size = [32, 32];
+    let want = direct::render(&s, size[0], size[1]).unwrap();
+    let with = |preset: LinkPreset, transfer: Option<Transfer>| {
+        let mut opts = RenderOptions::new([2, 2, 2]);
+        opts.size = size;
+        opts.sim = SimConfig::with_links([2, 2, 2], preset);
+        if let Some(t) = transfer {
+            opts.sim.link = LinkSpec { transfer: t, ..opts.sim.link };
+            opts.sim.host_link = LinkSpec { transfer: t, ..opts.sim.host_link };
+        }
+        let r = render_sim(&s, &opts).unwrap();
+        assert!(r.frame.sums == want.sums, "{preset:?} {transfer:?} changed the image");
+        assert_eq!(r.frame.rays_created, r.frame.rays_terminated);
+        for (id, (busy, load)) in r.busy.iter().zip(&r.frame.loads).enumerate() {
+            let (busy, load) = (busy.expect("the board sees its nodes"), load.expect("every node reported"));
+            // The board also charges the last polls, which take `Finish` and
+            // send the final report and whatever else is still due: the
+            // report cannot count them (a few short messages of under 64
+            // bytes). A poll is charged at least one cycle.
+            let cost = sim_board::CostModel::default();
+            let finish = 4 * cost.short_message + 4 * 64 * opts_byte_cpu(preset, transfer);
+            let gap = busy.total() as i64 - load.running as i64;
+            assert!(
+                (-(load.running as i64) / 1000..=finish as i64).contains(&gap),
+                "node {id}: split {busy:?} against running {}",
+                load.running
+            );
+        }
+        r
+    };
+    fn opts_byte_cpu(preset: LinkPreset, transfer: Option<Transfer>) -> u64 {
+        transfer.unwrap_or(preset.host().transfer).cycles_per_byte()
+    }
+    let ideal = with(LinkPreset::Ideal, None);
+    let dma = with(LinkPreset::F413, Some(Transfer::Dma));
+    let irq = with(LinkPreset::F413, None);
+    let sum = |r: &host_tool::render::RenderResult| {
+        r.busy.iter().flatten().fold(sim_board::Busy::default(), |mut a, b| {
+            a += *b;
+            a
+        })
+    };
+    let (ideal_busy, dma_busy, irq_busy) = (sum(&ideal), sum(&dma), sum(&irq));
+    assert_eq!((ideal_busy.compute, ideal_busy.setup), (irq_busy.compute, irq_busy.setup));
+    assert_eq!(ideal_busy.messaging, dma_busy.messaging, "no CPU per byte: the same messaging work");
+    // An interrupt a byte costs 50 cycles at each end of every byte; the
+    // nodes also pay for the bytes the host sends them, so at least this:
+    let sent: u64 = irq.bytes.iter().flatten().sum();
+    let neighbours: u64 = irq.bytes.iter().map(|b| b[..6].iter().sum::<u64>()).sum();
+    assert!(
+        irq_busy.messaging >= dma_busy.messaging + 50 * (sent + neighbours),
+        "{irq_busy:?} vs {dma_busy:?}"
+    );
+    // 3 Mbaud at 100 MHz is 13 times slower a byte than the ideal link.
+    assert!(irq.frame.makespan > ideal.frame.makespan);
 }

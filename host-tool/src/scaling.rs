@@ -1,0 +1,241 @@
+//! `bench scaling`: does the array pay for itself? For cubic arrays of S
+//! nodes it renders one scene on the in-memory board and reports the honest
+//! efficiency E = T(1) / (S x T(S)) in virtual cycles, where T is the frame's
+//! makespan, beside how the nodes' busy cycles split into compute, walk
+//! set-up and messaging.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use sim_board::Busy;
+
+use crate::error::HostError;
+use crate::output::write_all_atomic;
+use crate::plot::{Chart, Series, png};
+use crate::render::{Layout, RenderOptions, render_sim};
+use crate::scene::Scene;
+
+/// What to run.
+#[derive(Debug, Clone)]
+pub struct ScalingConfig {
+    /// Nodes per axis of each cubic array (1 must come first: it is T(1)).
+    pub sides: Vec<u16>,
+    /// The first cuts compared (each with a static partition).
+    pub layouts: Vec<Layout>,
+    /// Image size, links and the rest, for every run (the array is set per run).
+    pub base: RenderOptions,
+}
+
+impl ScalingConfig {
+    /// S = 1, 8, 27, 64, 216, 512, even and preview-fitted cuts.
+    pub fn full(base: RenderOptions) -> Self {
+        Self { sides: vec![1, 2, 3, 4, 6, 8], layouts: vec![Layout::Even, Layout::Preview], base }
+    }
+
+    /// S = 1, 8, 27 (for CI).
+    pub fn quick(base: RenderOptions) -> Self {
+        Self { sides: vec![1, 2, 3], ..Self::full(base) }
+    }
+}
+
+/// One run's figures.
+#[derive(Debug, Clone)]
+pub struct ScalingRow {
+    /// Nodes.
+    pub nodes: u32,
+    /// The first cut.
+    pub layout: Layout,
+    /// Virtual cycles until the last ray retired.
+    pub makespan: u64,
+    /// T(1) / (S x T(S)).
+    pub efficiency: f64,
+    /// All nodes' busy cycles, by kind.
+    pub busy: Busy,
+    /// Busy cycles of all nodes over those of the one node.
+    pub work_ratio: f64,
+    /// Bytes sent on neighbour links, all nodes.
+    pub neighbour_bytes: u64,
+    /// Bytes sent to the host, all nodes.
+    pub host_bytes: u64,
+    /// The busiest host link's wire time over the makespan: near 1, the
+    /// frame waits for pixels to reach the host, not for the nodes.
+    pub host_link_busiest: f64,
+}
+
+impl ScalingRow {
+    /// Messaging over all busy cycles.
+    pub fn messaging_share(&self) -> f64 {
+        self.busy.messaging as f64 / self.busy.total().max(1) as f64
+    }
+}
+
+/// Runs every configuration; writes `scaling.csv`, `scaling.md` and
+/// `scaling.png` to `out` (all or none) and returns the Markdown table.
+pub fn bench_scaling(scene: &Scene, cfg: &ScalingConfig, out: &Path) -> Result<String, HostError> {
+    if cfg.sides.first() != Some(&1) {
+        return Err(crate::error::input("bench scaling needs the one-node run first (side 1)"));
+    }
+    // Before the runs, not after them.
+    std::fs::create_dir_all(out)
+        .map_err(|e| HostError::Io(format!("cannot create {}: {e}", out.display())))?;
+    let files = ["scaling.csv", "scaling.md", "scaling.png"].map(|f| out.join(f));
+    crate::output::check_writable(&files.iter().map(|p| p.as_path()).collect::<Vec<_>>())?;
+    let mut rows: Vec<ScalingRow> = Vec::new();
+    let mut one: Option<(u64, u64)> = None;
+    for &side in &cfg.sides {
+        // One node has one cut: the layouts differ from S = 8 on.
+        let layouts = if side == 1 { &cfg.layouts[..1] } else { &cfg.layouts[..] };
+        for &layout in layouts {
+            let row = run(scene, cfg, side, layout, one)?;
+            one = one.or(Some((row.makespan, row.busy.total())));
+            eprintln!(
+                "S = {:3} {:7}: makespan {:.3e}, E {:.3}, messaging {:.0}%",
+                row.nodes,
+                layout.name(),
+                row.makespan as f64,
+                row.efficiency,
+                100.0 * row.messaging_share()
+            );
+            rows.push(row);
+        }
+    }
+    let table = markdown(cfg, &rows);
+    let plot = chart(cfg, &rows)?;
+    let [csv_path, md_path, png_path] = &files;
+    write_all_atomic(&[(csv_path, csv(&rows).as_bytes()), (md_path, table.as_bytes()), (png_path, &plot)])?;
+    Ok(table)
+}
+
+fn run(
+    scene: &Scene,
+    cfg: &ScalingConfig,
+    side: u16,
+    layout: Layout,
+    one: Option<(u64, u64)>,
+) -> Result<ScalingRow, HostError> {
+    let array = [side; 3];
+    let mut opts = cfg.base;
+    opts.array = array;
+    opts.sim.array = array;
+    opts.layout = layout;
+    opts.balance = None;
+    let r = render_sim(scene, &opts)
+        .map_err(|e| e.context(&format!("{side}x{side}x{side} {}", layout.name())))?;
+    let busy = r.busy.iter().flatten().fold(Busy::default(), |mut a, b| {
+        a += *b;
+        a
+    });
+    let nodes = u32::from(side).pow(3);
+    let makespan = r.frame.makespan;
+    let host_wire = r.bytes.iter().map(|b| b[6]).max().unwrap_or(0) * opts.sim.host_link.byte_cycles();
+    let (t1, busy1) = one.unwrap_or((makespan, busy.total()));
+    Ok(ScalingRow {
+        nodes,
+        layout,
+        makespan,
+        efficiency: t1 as f64 / (f64::from(nodes) * makespan.max(1) as f64),
+        busy,
+        work_ratio: busy.total() as f64 / busy1.max(1) as f64,
+        neighbour_bytes: r.bytes.iter().map(|b| b[..6].iter().sum::<u64>()).sum(),
+        host_bytes: r.bytes.iter().map(|b| b[6]).sum(),
+        host_link_busiest: host_wire as f64 / makespan.max(1) as f64,
+    })
+}
+
+fn csv(rows: &[ScalingRow]) -> String {
+    let mut s = String::from(
+        "nodes,layout,makespan,efficiency,messaging_share,work_ratio,compute,setup,messaging,neighbour_bytes,host_bytes,host_link_busiest\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "{},{},{},{:.4},{:.4},{:.3},{},{},{},{},{},{:.3}",
+            r.nodes,
+            r.layout.name(),
+            r.makespan,
+            r.efficiency,
+            r.messaging_share(),
+            r.work_ratio,
+            r.busy.compute,
+            r.busy.setup,
+            r.busy.messaging,
+            r.neighbour_bytes,
+            r.host_bytes,
+            r.host_link_busiest
+        );
+    }
+    s
+}
+
+fn markdown(cfg: &ScalingConfig, rows: &[ScalingRow]) -> String {
+    let o = &cfg.base;
+    let mut s = format!(
+        "Links: {} (neighbours {} baud, host {} baud, {} cycles a byte on the wire, {} of CPU); \
+         image {}x{}; static partitions.\n\n",
+        o.link_preset.name(),
+        o.sim.link.baud,
+        o.sim.host_link.baud,
+        o.sim.link.byte_cycles(),
+        o.sim.link.transfer.cycles_per_byte(),
+        o.size[0],
+        o.size[1]
+    );
+    s.push_str(
+        "Messaging, set-up and compute are shares of all nodes' busy cycles; the busiest host link \
+         is the share of the makespan its wire was busy (near 100%, pixels waiting to reach the \
+         host bound the frame).\n\n",
+    );
+    s.push_str(
+        "| S | cut | makespan (cycles) | E | messaging | set-up | compute | work / one node | busiest host link |\n",
+    );
+    s.push_str("|---|---|---|---|---|---|---|---|---|\n");
+    for r in rows {
+        let share = |x: u64| 100.0 * x as f64 / r.busy.total().max(1) as f64;
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.3e} | {:.3} | {:.0}% | {:.0}% | {:.0}% | {:.2} | {:.0}% |",
+            r.nodes,
+            r.layout.name(),
+            r.makespan as f64,
+            r.efficiency,
+            share(r.busy.messaging),
+            share(r.busy.setup),
+            share(r.busy.compute),
+            r.work_ratio,
+            100.0 * r.host_link_busiest
+        );
+    }
+    s
+}
+
+fn chart(cfg: &ScalingConfig, rows: &[ScalingRow]) -> Result<Vec<u8>, HostError> {
+    let series = |f: fn(&ScalingRow) -> f64| -> Vec<Series> {
+        cfg.layouts
+            .iter()
+            .map(|&layout| Series {
+                name: layout.name().into(),
+                points: rows
+                    .iter()
+                    .filter(|r| r.layout == layout || r.nodes == 1)
+                    .map(|r| (f64::from(r.nodes), f(r)))
+                    .collect(),
+                markers: true,
+            })
+            .collect()
+    };
+    let chart = |title: &str, y: &str| Chart {
+        title: title.into(),
+        x_label: "S (nodes)".into(),
+        y_label: y.into(),
+        log_x: true,
+        log_y: false,
+    };
+    png(
+        &[
+            (chart("Efficiency E = T(1) / (S T(S))", "E"), series(|r| r.efficiency)),
+            (chart("Messaging share of busy cycles", "messaging / busy"), series(|r| r.messaging_share())),
+        ],
+        900,
+        400,
+    )
+}

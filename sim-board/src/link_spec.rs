@@ -1,0 +1,170 @@
+//! Links of boards a user can build: a core clock, a line rate and a way of
+//! moving bytes, turned into the cycles the in-memory board charges, with
+//! named presets.
+//!
+//! A UART sends 10 bits per byte (start, eight data bits, stop), so a byte
+//! occupies the wire for `clock * 10 / baud` cycles of the sending node. What
+//! the node's CPU pays to move that byte between the UART and memory depends
+//! on how the firmware does it ([`Transfer`]), and is charged to both ends as
+//! messaging time. The message handling itself (framing, CRC, the reliable
+//! channel) is the [`crate::CostModel`]'s, measured on the emulated Cortex-M3.
+
+use crate::cost::LinkModel;
+
+/// How a board moves a byte between a UART's data register and memory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Transfer {
+    /// The main loop polls the status register and moves the byte.
+    Polled,
+    /// An interrupt per byte.
+    Interrupt,
+    /// A DMA stream moves the bytes; the CPU sets up whole transfers.
+    Dma,
+}
+
+impl Transfer {
+    /// CPU cycles per byte moved.
+    ///
+    /// - Interrupt: 12 cycles to enter and 10 to leave a handler (Cortex-M3
+    ///   and M4 without floating-point context, ARM's TRMs), and a handler of
+    ///   about 28 instructions that reads the status and data registers and
+    ///   puts the byte in a ring: 50.
+    /// - Polled: the same register reads and ring update without the
+    ///   exception: 16. (The loop must come round once per byte; a long walk
+    ///   between passes delays bytes, which this model does not charge.)
+    /// - DMA: none per byte; the set-up of each transfer is not modelled.
+    ///
+    /// These are estimates from the instruction sequences, not measurements:
+    /// the emulated boards do not time their UARTs.
+    pub const fn cycles_per_byte(self) -> u64 {
+        match self {
+            Transfer::Polled => 16,
+            Transfer::Interrupt => 50,
+            Transfer::Dma => 0,
+        }
+    }
+
+    /// The name on the command line and in summaries.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Transfer::Polled => "polled",
+            Transfer::Interrupt => "interrupt",
+            Transfer::Dma => "dma",
+        }
+    }
+}
+
+/// One kind of link: clock, line rate, byte transfer, latency, buffering.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LinkSpec {
+    /// The node's core clock, Hz (virtual time counts its cycles).
+    pub clock_hz: u64,
+    /// Line rate, bits per second.
+    pub baud: u64,
+    /// How bytes reach memory.
+    pub transfer: Transfer,
+    /// Cycles from a message's last byte on the wire to its arrival.
+    pub latency: u64,
+    /// Messages the link holds before the sender sees it full.
+    pub capacity: usize,
+}
+
+impl LinkSpec {
+    /// Cycles one byte occupies the wire: 10 bits at `baud`, rounded up.
+    pub fn byte_cycles(&self) -> u64 {
+        (self.clock_hz * 10).div_ceil(self.baud.max(1)).max(1)
+    }
+
+    /// What the in-memory board charges for this link.
+    pub fn model(&self) -> LinkModel {
+        LinkModel {
+            byte: self.byte_cycles(),
+            byte_cpu: self.transfer.cycles_per_byte(),
+            latency: self.latency,
+            capacity: self.capacity,
+        }
+    }
+}
+
+/// Named links: the neighbour links and the host link of a kind of board.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum LinkPreset {
+    /// NUCLEO-F413ZH boards as the firmware is to configure them: the core at
+    /// its full 100 MHz from the PLL, neighbour USARTs at 3 Mbaud with a byte
+    /// interrupt, and the host link through the ST-LINK's virtual COM port
+    /// at 921 600 baud (a rate its bridge takes; set `--host-baud` to yours).
+    #[default]
+    F413,
+    /// The links the board charged before presets: 25 cycles a byte (40 Mbaud
+    /// at 100 MHz) and no CPU per byte, on every link. Faster than any UART
+    /// here; it shows what the nodes' own work allows.
+    Ideal,
+}
+
+impl LinkPreset {
+    /// Every preset, for help texts and tests.
+    pub const ALL: [LinkPreset; 2] = [LinkPreset::F413, LinkPreset::Ideal];
+
+    /// The name on the command line and in summaries.
+    pub const fn name(self) -> &'static str {
+        match self {
+            LinkPreset::F413 => "f413",
+            LinkPreset::Ideal => "ideal",
+        }
+    }
+
+    /// Node-to-node links.
+    pub const fn neighbour(self) -> LinkSpec {
+        match self {
+            LinkPreset::F413 => LinkSpec {
+                clock_hz: 100_000_000,
+                baud: 3_000_000,
+                transfer: Transfer::Interrupt,
+                latency: 2_000,
+                capacity: 8,
+            },
+            LinkPreset::Ideal => LinkSpec {
+                clock_hz: 100_000_000,
+                baud: 40_000_000,
+                transfer: Transfer::Dma,
+                latency: 2_000,
+                capacity: 8,
+            },
+        }
+    }
+
+    /// Node-to-host links (the host reads many nodes and buffers more).
+    pub const fn host(self) -> LinkSpec {
+        let n = self.neighbour();
+        match self {
+            LinkPreset::F413 => LinkSpec { baud: 921_600, capacity: 64, ..n },
+            LinkPreset::Ideal => LinkSpec { capacity: 64, ..n },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn byte_time_is_ten_bits_at_the_line_rate() {
+        // Computed by hand: 100 MHz x 10 bits / 3 Mbaud = 333.3 cycles.
+        let f413 = LinkPreset::F413.neighbour();
+        assert_eq!(f413.byte_cycles(), 334);
+        assert_eq!(LinkPreset::F413.host().byte_cycles(), 1_086);
+        // The ideal preset is the board's former fixed link.
+        let ideal = LinkPreset::Ideal.neighbour().model();
+        assert_eq!((ideal.byte, ideal.byte_cpu, ideal.latency, ideal.capacity), (25, 0, 2_000, 8));
+        assert_eq!(LinkPreset::Ideal.host().model().capacity, 64);
+    }
+
+    #[test]
+    fn a_byte_costs_the_cpu_by_how_it_moves() {
+        let spec = |transfer| LinkSpec { transfer, ..LinkPreset::F413.neighbour() }.model().byte_cpu;
+        assert!(spec(Transfer::Dma) < spec(Transfer::Polled));
+        assert!(spec(Transfer::Polled) < spec(Transfer::Interrupt));
+        // An interrupt costs at least its entry and exit (12 + 10 cycles).
+        assert!(spec(Transfer::Interrupt) >= 22);
+    }
+}
