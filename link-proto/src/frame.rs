@@ -18,6 +18,12 @@ use serde::Deserialize;
 
 /// CRC-32C (Castagnoli): better burst detection than CRC-32/ISO-HDLC at the same cost.
 const CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
+
+/// The frame check: CRC-32C over `bytes` (exposed so that its cost can be
+/// measured apart from the rest of a frame's encoding).
+pub fn checksum(bytes: &[u8]) -> u32 {
+    CRC.checksum(bytes)
+}
 const CRC_LEN: usize = 4;
 
 /// Largest postcard body, acknowledgement trailer and CRC of any frame

@@ -292,6 +292,58 @@ fn replies(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     (timer.ticks() - start, 2 * passed)
 }
 
+/// Where one end of a hop goes, each part of a ray's frame apart: encoding
+/// it whole (postcard, CRC and COBS), decoding it whole, the CRC alone, COBS
+/// alone both ways, and the frame's length. Per ray; not charged by the cost
+/// model (its `ray_message` is the hop's end as a whole), printed to show
+/// what a cheaper transport must cut.
+fn frame_parts(timer: &mut Timer, rays: &[RayMsg]) -> [(&'static str, u64, u64); 6] {
+    let mut buf = [0u8; MAX_FRAME_LEN];
+    let mut work = [0u8; MAX_FRAME_LEN];
+    let (mut encode, mut decode, mut crc, mut cobs_enc, mut cobs_dec, mut bytes) = (0, 0, 0, 0, 0, 0);
+    let mut n = 0u64;
+    for round in 0..20u16 {
+        for ray in rays {
+            let frame = link_proto::Frame::new(round, Message::Ray(*ray));
+            let start = timer.ticks();
+            let Ok(len) = core::hint::black_box(link_proto::encode_frame(&frame, &mut buf)) else { continue };
+            encode += timer.ticks() - start;
+            bytes += len as u64;
+            let start = timer.ticks();
+            let decoded = link_proto::FrameDecoder::new().decode(&mut buf.get(..len).unwrap_or_default());
+            core::hint::black_box(&decoded);
+            decode += timer.ticks() - start;
+            // The payload between the delimiters, COBS-decoded, for the parts.
+            let Some(stuffed) = buf.get(1..len - 1) else { continue };
+            let Some(w) = work.get_mut(..stuffed.len()) else { continue };
+            w.copy_from_slice(stuffed);
+            let start = timer.ticks();
+            let payload_len = core::hint::black_box(link_proto::cobs::decode_in_place(w)).unwrap_or(0);
+            cobs_dec += timer.ticks() - start;
+            let Some(payload) = work.get(..payload_len) else { continue };
+            let start = timer.ticks();
+            core::hint::black_box(link_proto::frame::checksum(payload));
+            crc += timer.ticks() - start;
+            let Some(w) = work.get_mut(..payload_len + 1) else { continue };
+            w.copy_within(..payload_len, 1);
+            let start = timer.ticks();
+            core::hint::black_box(link_proto::cobs::encode_in_place(w));
+            cobs_enc += timer.ticks() - start;
+            n += 1;
+        }
+    }
+    let per = |t: u64| per_unit_x100(t, n);
+    [
+        ("ray_frame_encode", per(encode), n),
+        ("ray_frame_decode", per(decode), n),
+        ("ray_frame_crc", per(crc), n),
+        ("ray_frame_cobs_encode", per(cobs_enc), n),
+        ("ray_frame_cobs_decode", per(cobs_dec), n),
+        // Bytes on the wire per frame (x 100, as the other lines).
+        ("ray_frame_bytes", 100 * bytes / n.max(1), n),
+    ]
+}
+
 /// Checks the firmware's `__aeabi_memcpy` (`node_board::memcpy`) against a
 /// byte loop for every source and destination alignment and every length
 /// up to 80, and that it writes nothing outside the destination.
@@ -369,6 +421,9 @@ fn main() -> ! {
     let _ = writeln!(out, "kernel hop {} {n}", per_unit_x100(ticks, n));
     let (ticks, n) = replies(&mut timer, &rays);
     let _ = writeln!(out, "kernel reply {} {n}", per_unit_x100(ticks, n));
+    for (name, x100, n) in frame_parts(&mut timer, &rays) {
+        let _ = writeln!(out, "kernel {name} {x100} {n}");
+    }
     let _ = writeln!(out, "kernels done");
     board::exit(true)
 }
