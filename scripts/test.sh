@@ -59,6 +59,9 @@ scripts/check-no-std.sh "$THUMB"
 step "the paper's experiments, reduced (host-tool bench paper --quick)"
 cargo run --release --locked -p host-tool -- bench paper --quick --out target/paper-quick
 
+step "efficiency and messaging share at S = 1, 8, 27 (host-tool bench scaling --quick)"
+cargo run --release --locked -p host-tool -- bench scaling --quick --out target/scaling-quick
+
 step "error against run time of the arithmetic variants, reduced (host-tool report numerics --quick)"
 cargo run --release --locked -p host-tool -- report numerics --quick --out target/numerics-quick
 
