@@ -16,10 +16,11 @@
 pub mod cobs;
 pub mod frame;
 pub mod message;
+pub mod ray_wire;
 
 pub use frame::{DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_PAYLOAD_LEN, encode_frame};
 pub use message::*;
 
 /// Version of the wire protocol; nodes and host exchange it in [`Hello`].
 /// Bump it whenever a message changes shape (postcard carries no field names).
-pub const PROTOCOL_VERSION: u16 = 6;
+pub const PROTOCOL_VERSION: u16 = 7;

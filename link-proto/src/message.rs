@@ -347,7 +347,10 @@ pub struct HitMsg {
 
 /// A ray with its exact traversal state. The digital line is fully determined by
 /// `origin`, `dir` and `cell`, so a receiver continues it bit-identically.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+///
+/// On the wire it takes the hand-packed form of [`crate::ray_wire`], not
+/// postcard's field by field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RayMsg {
     /// Origin, Q16.16.
     pub origin: [i32; 3],
