@@ -141,6 +141,9 @@ pub struct RenderResult {
     pub stats: RunStats,
     /// Bytes each node sent, per port.
     pub bytes: Vec<[u64; 7]>,
+    /// Bytes each node took in, per port (the in-memory board; zeros where
+    /// the transport cannot see them).
+    pub bytes_in: Vec<[u64; 7]>,
     /// Each node's busy cycles by what they were spent on (the in-memory
     /// board; `None` where the transport cannot see inside the nodes).
     pub busy: Vec<Option<Busy>>,
@@ -164,6 +167,10 @@ pub trait Array {
     fn bytes_sent(&self, node: usize) -> [u64; 7];
     /// Resends and damaged frames on the links.
     fn link_stats(&self) -> ChannelStats;
+    /// Bytes node `node` took in, per port, where the transport can see them.
+    fn bytes_received(&self, _node: usize) -> [u64; 7] {
+        [0; 7]
+    }
     /// Node `node`'s busy cycles by what they were spent on, where the
     /// transport can see them.
     fn busy(&self, _node: usize) -> Option<Busy> {
@@ -198,6 +205,10 @@ impl Array for Board {
 
     fn busy(&self, node: usize) -> Option<Busy> {
         (node < self.len()).then(|| Board::busy(self, node))
+    }
+
+    fn bytes_received(&self, node: usize) -> [u64; 7] {
+        if node < self.len() { Board::bytes_received(self, node) } else { [0; 7] }
     }
 }
 
@@ -341,9 +352,10 @@ pub fn render_on(
     array.run(&mut frame).map_err(|e| e.context("collecting loads failed"))?;
     node_errors(&frame, &partition)?;
     let bytes = (0..array.nodes()).map(|i| array.bytes_sent(i)).collect();
+    let bytes_in = (0..array.nodes()).map(|i| array.bytes_received(i)).collect();
     let busy = (0..array.nodes()).map(|i| array.busy(i)).collect();
     let links = array.link_stats();
-    Ok(RenderResult { frame, partition, stats, bytes, busy, wall: started.elapsed(), links })
+    Ok(RenderResult { frame, partition, stats, bytes, bytes_in, busy, wall: started.elapsed(), links })
 }
 
 /// Sends the scene, assignments and render start to every node.

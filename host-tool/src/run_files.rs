@@ -15,20 +15,22 @@ use crate::scene::Scene;
 
 /// Busy cycles by kind, and waiting.
 fn busy_json(b: &Busy, waiting: u64) -> serde_json::Value {
-    json!({"compute": b.compute, "setup": b.setup, "messaging": b.messaging, "waiting": waiting})
+    json!({"compute": b.compute, "setup": b.setup, "messaging": b.messaging, "waiting": waiting, "polls": b.polls})
 }
 
-/// Per neighbour port and the host port: bytes sent, and the fraction of
-/// the frame's makespan the link's wire spent carrying them.
+/// Per neighbour port and the host port: bytes sent and received, and the
+/// fraction of the frame's makespan the wire out spent carrying them.
 fn ports_json(opts: &RenderOptions, r: &RenderResult, id: usize) -> serde_json::Value {
     let names = ["+x", "-x", "+y", "-y", "+z", "-z", "host"];
     let mut ports = serde_json::Map::new();
     for (p, name) in names.iter().enumerate() {
         let bytes = r.bytes[id][p];
+        let received = r.bytes_in.get(id).map_or(0, |b| b[p]);
         let spec = if p == 6 { &opts.sim.host_link } else { &opts.sim.link };
         let utilisation = (bytes * spec.byte_cycles()) as f64 / r.frame.makespan.max(1) as f64;
-        if bytes > 0 {
-            ports.insert(name.to_string(), json!({"bytes": bytes, "utilisation": utilisation}));
+        if bytes > 0 || received > 0 {
+            let port = json!({"bytes": bytes, "received": received, "utilisation": utilisation});
+            ports.insert(name.to_string(), port);
         }
     }
     serde_json::Value::Object(ports)

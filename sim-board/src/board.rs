@@ -276,6 +276,11 @@ impl Board {
         std::array::from_fn(|p| self.slots[i].ports[p].bytes)
     }
 
+    /// Bytes node `i` took from each port.
+    pub fn bytes_received(&self, i: usize) -> [u64; 7] {
+        std::array::from_fn(|p| self.slots[i].ports[p].bytes_in)
+    }
+
     /// Node `i`'s busy cycles so far, by what they were spent on.
     pub fn busy(&self, i: usize) -> Busy {
         self.slots[i].busy

@@ -29,6 +29,8 @@ pub struct PortState {
     pub busy_until: u64,
     /// Bytes sent on the port.
     pub bytes: u64,
+    /// Bytes taken from the port (whole messages or frames).
+    pub bytes_in: u64,
     /// Framed mode: byte chunks (one frame each) arriving on this port, by arrival.
     pub wire: VecDeque<(u64, Vec<u8>)>,
     /// Framed mode: frames this node wrote on the port this round.
@@ -62,9 +64,10 @@ impl SimLinks<'_> {
 impl Links for SimLinks<'_> {
     fn recv(&mut self, port: Port) -> Option<Message> {
         let byte_cpu = self.model(port).byte_cpu;
-        let inbox = &mut self.ports.get_mut(port.index())?.inbox;
-        if inbox.front().is_some_and(|m| m.at <= self.now) {
-            let m = inbox.pop_front()?;
+        let state = self.ports.get_mut(port.index())?;
+        if state.inbox.front().is_some_and(|m| m.at <= self.now) {
+            let m = state.inbox.pop_front()?;
+            state.bytes_in += m.len;
             self.byte_cpu += m.len * byte_cpu;
             Some(m.msg)
         } else {

@@ -108,6 +108,7 @@ impl Slot {
                 while wire.front().is_some_and(|(at, _)| *at <= self.clock) {
                     if let Some((_, bytes)) = wire.pop_front() {
                         byte_cpu += bytes.len() as u64 * model(port).byte_cpu;
+                        self.ports[port.index()].bytes_in += bytes.len() as u64;
                         framed.ingest(port, &bytes);
                     }
                 }

@@ -416,4 +416,13 @@ fn link_presets_change_time_not_the_image() {
     );
     // 3 Mbaud at 100 MHz is 13 times slower a byte than the ideal link.
     assert!(irq.frame.makespan > ideal.frame.makespan);
+    // Every byte a node sends a neighbour is a byte that neighbour takes in,
+    // and each node took in the scene the host sent it.
+    for r in [&ideal, &irq] {
+        let out: u64 = r.bytes.iter().map(|b| b[..6].iter().sum::<u64>()).sum();
+        let taken: u64 = r.bytes_in.iter().map(|b| b[..6].iter().sum::<u64>()).sum();
+        assert_eq!(out, taken, "neighbour bytes sent and taken in");
+        assert!(r.bytes_in.iter().all(|b| b[6] > 0), "every node took in its scene");
+        assert!(r.busy.iter().flatten().all(|b| b.polls > 0));
+    }
 }
