@@ -95,10 +95,13 @@ pub fn broadcast_cost(scene: &Scene, cost: &sim_board::CostModel) -> u64 {
     (scene.spheres.len() + scene.lights.len() + 6) as u64 * cost.short_message
 }
 
-/// What each side of a hop pays: the ray's message and its reply, and half
-/// the receiver's walk set-up (a ray entering a node is set up again).
+/// What each side of a hop pays: the ray on a grant, a share of the `Grant`
+/// messages (one per half the grant target of rays, both ends), and half the
+/// receiver's walk set-up (a ray entering a node is set up again). Rays go
+/// on grants unless a node's pool has no slot to set aside.
 fn hop_side(cost: &sim_board::CostModel) -> u64 {
-    cost.ray_message + cost.short_message + cost.trace / 2
+    let grants = cost.short_message / u64::from(node_fw::node::GRANT_TARGET / 2);
+    cost.granted_ray + grants + cost.trace / 2
 }
 
 /// Renders `scene` with the camera's direction basis rounded to `bits` fraction

@@ -29,6 +29,9 @@ const RESEND_AFTER_US: u64 = 250_000;
 const TX_QUEUE: usize = 4096;
 /// Heartbeat period while waiting.
 const HEARTBEAT: Duration = Duration::from_millis(500);
+/// Node time-outs without a retired ray, or another message that shows the
+/// frame moving, after which a run that every node still answers fails.
+const STALL_TIMEOUTS: u32 = 3;
 /// Baud rate for real devices (ptys ignore it).
 pub const BAUD: u32 = 115_200;
 
@@ -228,11 +231,27 @@ impl Array for SerialArray {
             host.receive(node, self.micros(), msg);
         }
         let mut rounds = 0;
+        let mut progress = Instant::now();
         while !host.finished() {
             rounds += 1;
-            let moved = self.pump(&mut |node, at, msg| host.receive(node, at, msg))?;
+            let moved = self.pump(&mut |node, at, msg| {
+                if sim_board::progresses(&msg) {
+                    progress = Instant::now();
+                }
+                host.receive(node, at, msg)
+            })?;
             self.heartbeat();
             self.check_alive()?;
+            // Nodes that answer every frame but return nothing: an array that
+            // lost its way (a firmware fault) would otherwise hold the host for ever.
+            let stalled = progress.elapsed();
+            if stalled > STALL_TIMEOUTS * self.timeout {
+                return Err(HostError::Node(format!(
+                    "the array stopped making progress: every node answers, but nothing has come back \
+                     for {:.0} s (3 x --node-timeout); no image written",
+                    stalled.as_secs_f64()
+                )));
+            }
             if !moved {
                 std::thread::sleep(Duration::from_micros(200));
             }

@@ -21,6 +21,15 @@ use node_fw::{Port, wiring};
 use serialport::{SerialPort, TTYPort};
 use sim_board::SimNode;
 
+/// One set of software boards at a time: a host process started by one test
+/// inherits every pty open in this process at that moment, and would keep
+/// another test's closed device from hanging up.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    ONE_AT_A_TIME.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
 /// Microseconds without an acknowledgement before a board's channel resends.
 const RESEND_AFTER_US: u64 = 50_000;
 
@@ -36,6 +45,12 @@ enum Fault {
     },
     /// Bursts of garbage bytes go both ways on the link, four times.
     Garbage {
+        node: usize,
+        after: usize,
+    },
+    /// The node stops working, while its links still acknowledge (and drop)
+    /// everything: an array that answers but makes no progress.
+    Deaf {
         node: usize,
         after: usize,
     },
@@ -111,7 +126,13 @@ fn run_boards(array: [u16; 3], masters: Vec<TTYPort>, fault: Fault, stop: &Atomi
                 links[i].ingest(Port::Host, &buf[..n]);
                 busy |= n > 0;
             }
-            busy |= node[i].poll(now, &mut *links[i]).is_busy();
+            if matches!(fault, Fault::Deaf { node: k, after } if k == i && traced(&node[k]) > after) {
+                for port in Port::ALL {
+                    while node_fw::Links::recv(&mut *links[i], port).is_some() {}
+                }
+            } else {
+                busy |= node[i].poll(now, &mut *links[i]).is_busy();
+            }
             links[i].transmit(now, |port, bytes| {
                 match port {
                     Port::Host => to_host[i].extend_from_slice(bytes),
@@ -239,6 +260,7 @@ fn in_memory_image() -> Vec<u8> {
 
 #[test]
 fn software_boards_over_ptys_render_the_in_memory_image() {
+    let _one = one_at_a_time();
     let boards = SoftBoards::launch([2, 2, 1], Fault::None);
     let dir = scratch("clean");
     let (code, err) = serial_render(dir.path(), &boards);
@@ -249,6 +271,7 @@ fn software_boards_over_ptys_render_the_in_memory_image() {
 
 #[test]
 fn a_device_closed_mid_render_names_its_node_and_writes_nothing() {
+    let _one = one_at_a_time();
     // Node 2's device closes once it has traced 100 rays. The host must see
     // the hang-up, not wait out its time-out.
     let boards = SoftBoards::launch([2, 2, 1], Fault::Close { node: 2, after: 100 });
@@ -266,6 +289,7 @@ fn a_device_closed_mid_render_names_its_node_and_writes_nothing() {
 
 #[test]
 fn garbage_on_a_host_link_mid_render_costs_resends_not_the_image() {
+    let _one = one_at_a_time();
     let boards = SoftBoards::launch([2, 2, 1], Fault::Garbage { node: 1, after: 20 });
     let dir = scratch("garbage");
     let (code, err) = serial_render(dir.path(), &boards);
@@ -282,4 +306,23 @@ fn garbage_on_a_host_link_mid_render_costs_resends_not_the_image() {
     );
     let image = std::fs::read(dir.path().join("render.png")).expect("image written");
     assert!(image == in_memory_image(), "garbage changed the image");
+}
+
+#[test]
+fn an_array_that_answers_but_makes_no_progress_is_given_up_on() {
+    let _one = one_at_a_time();
+    // Node 3 goes deaf after 50 rays: every frame is still acknowledged, so
+    // no node looks silent, but nothing comes back.
+    let boards = SoftBoards::launch([2, 2, 1], Fault::Deaf { node: 3, after: 50 });
+    let dir = scratch("deaf");
+    let started = Instant::now();
+    let ports = boards.paths.join(",");
+    let args = ["--backend", "serial", "--node-timeout", "2", "--ports", &ports];
+    let (code, err) = render(dir.path(), &args, &boards.board_fds);
+    assert_eq!(code, Some(30), "{err}");
+    assert!(err.contains("stopped making progress"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert!(left.is_empty(), "nothing written, found {left:?}");
+    // Three node time-outs of silence, not a minute.
+    assert!(started.elapsed() < Duration::from_secs(20), "gave up after {:?}", started.elapsed());
 }

@@ -89,6 +89,20 @@ pub enum Message {
     /// Node to host: a slide this node received is committed (the host
     /// rebuilds every boundary's positions from these).
     SlideNote(SlideNote),
+    /// Node to node: the sender may pass this many more rays as
+    /// [`Message::GrantedRay`]; the receiver has set a pool slot aside for each.
+    Grant(u16),
+    /// Node to node: a ray passed on a grant. The receiver admits it into a
+    /// slot it set aside and answers nothing; the sender forgets it once the
+    /// link has taken it.
+    GrantedRay(RayMsg),
+}
+
+impl Message {
+    /// Whether the message carries a ray (the long messages between nodes).
+    pub fn is_ray(&self) -> bool {
+        matches!(self, Message::Ray(_) | Message::GrantedRay(_))
+    }
 }
 
 /// A committed slide, as the receiving node tells the host.

@@ -78,6 +78,9 @@ pub trait Links {
     /// The next message that has arrived on `port`, if any.
     fn recv(&mut self, port: Port) -> Option<Message>;
     /// Queues `msg` on `port`, or hands it back if the link is full.
+    // Handing the message back is the point (the caller keeps it for the
+    // next poll); a message is a ray's size, 128 bytes, and stays on the stack.
+    #[allow(clippy::result_large_err)]
     fn try_send(&mut self, port: Port, msg: Message) -> Result<(), Message>;
     /// A port whose peer has restarted since the last call (a new incarnation
     /// on a framed link). Links that cannot tell, such as in-memory queues,

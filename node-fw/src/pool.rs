@@ -9,6 +9,24 @@
 //! so does every ray, however small `depth` is. Rays that cannot be admitted
 //! stay with their sender (see [`crate::node`]): the pool hands them back.
 //!
+//! **Grants.** A node may set free level-0 slots aside for a neighbour
+//! ([`RayPool::reserve`]) and tell it so; a ray sent on such a grant takes
+//! its slot whatever its class ([`RayPool::admit_reserved`]), so it needs no
+//! answer. The argument above still holds:
+//! 1. a granted ray is a ray admitted in advance into a level-0 slot, which
+//!    every class may take; while it travels it holds that slot and none at
+//!    the sender, so it waits for nothing;
+//! 2. slots are set aside only from free ones at level 0, so the `depth`
+//!    slots of every level `1..=top`, on which the induction rests, are
+//!    untouched;
+//! 3. `depth` slots of level 0 are never set aside (nor more than half of
+//!    the rest), so level 0 too keeps what the induction needs for rays
+//!    without a grant, among them the class-0 rays a node creates, which
+//!    only level 0 takes and which therefore never wait on grants a
+//!    neighbour holds and does not use.
+//!
+//! So a ray with a grant always moves on, and one without moves on as before.
+//!
 //! **Shared slots.** The argument needs only the levels above 0 to be kept
 //! for their classes; level 0 is open to every ray, so any slots the node has
 //! beyond one `depth` per level can go there. Without them a node near the
@@ -155,6 +173,8 @@ pub struct RayPool<const P: usize> {
     depth: u16,
     /// Level 0's slots: `depth` and the shared ones.
     base: u16,
+    /// Level-0 slots set aside for granted rays (`used[0] + reserved <= base`).
+    reserved: u16,
     top: u16,
 }
 
@@ -178,6 +198,7 @@ impl<const P: usize> RayPool<P> {
             used_per_level: [0; MAX_LEVELS],
             depth: 0,
             base: 0,
+            reserved: 0,
             top: 0,
         }
     }
@@ -220,6 +241,50 @@ impl<const P: usize> RayPool<P> {
             let _ = self.free.push(i);
         }
         self.used_per_level = [0; MAX_LEVELS];
+        self.reserved = 0;
+    }
+
+    /// Sets a free level-0 slot aside for a granted ray, if one beyond the
+    /// `depth` that stay open is free and grants hold at most half of level
+    /// 0's other slots (the rest stay for rays this node creates, and for
+    /// neighbours' rays that come without a grant).
+    pub fn reserve(&mut self) -> bool {
+        let used = self.used_per_level.first().copied().unwrap_or(u16::MAX);
+        let open = u32::from(self.base.saturating_sub(self.depth));
+        let room = u32::from(used) + u32::from(self.reserved) + u32::from(self.depth) < u32::from(self.base)
+            && 2 * u32::from(self.reserved) < open;
+        let reserved = room && self.free.len() > usize::from(self.reserved);
+        if reserved {
+            self.reserved += 1;
+        }
+        reserved
+    }
+
+    /// Slots set aside for granted rays.
+    pub fn reserved(&self) -> u16 {
+        self.reserved
+    }
+
+    /// Admits a granted ray into a slot set aside for it; hands it back if
+    /// none is.
+    pub fn admit_reserved(&mut self, ray: RayMsg, stage: Stage) -> Result<u16, RayMsg> {
+        if self.reserved == 0 {
+            return Err(ray);
+        }
+        let Some(index) = self.free.pop() else { return Err(ray) };
+        match (self.slots.get_mut(usize::from(index)), self.used_per_level.first_mut()) {
+            (Some(slot), Some(used)) if self.held.push(index).is_ok() => {
+                *slot = Some(Slot { ray, stage: Stage::Trace, level: 0 });
+                *used += 1;
+                self.reserved -= 1;
+                self.set_stage(index, stage);
+                Ok(index)
+            }
+            _ => {
+                let _ = self.free.push(index);
+                Err(ray)
+            }
+        }
     }
 
     /// Highest class the pool is sized for.
@@ -396,7 +461,7 @@ impl<const P: usize> RayPool<P> {
 
     fn free_level(&self, class: u16) -> Option<u16> {
         let class = class.min(self.top);
-        let room = |l: u16| if l == 0 { self.base } else { self.depth };
+        let room = |l: u16| if l == 0 { self.base.saturating_sub(self.reserved) } else { self.depth };
         (0..=class).rev().find(|&l| self.used_per_level.get(usize::from(l)).is_some_and(|&u| u < room(l)))
     }
 }
@@ -422,6 +487,37 @@ mod tests {
 
     use super::*;
     use link_proto::RayKind;
+
+    #[test]
+    fn grants_take_at_most_half_of_level_zero_beyond_its_depth() {
+        let mut pool = RayPool::<32>::new();
+        // Levels 0..=2 of one slot, and 8 shared: level 0 holds 9.
+        pool.configure(2, 1, Some(8)).unwrap();
+        let granted = (0..10).take_while(|_| pool.reserve()).count();
+        assert_eq!(granted, 4, "half of the 8 beyond the depth");
+        // Rays without a grant fill level 0's other 5 slots (one each at
+        // levels 1 and 2 for class 2), then are refused.
+        let admitted = (0..10).take_while(|_| pool.admit(ray(2), Stage::Trace).is_ok()).count();
+        assert_eq!(admitted, 1 + 1 + 5);
+        // Every granted ray is admitted, whatever its class, and no more.
+        for class in [0, 2, 1, 2] {
+            assert!(pool.admit_reserved(ray(class), Stage::Trace).is_ok());
+        }
+        assert!(pool.admit_reserved(ray(2), Stage::Trace).is_err());
+        assert_eq!((pool.len(), pool.reserved()), (11, 0));
+    }
+
+    #[test]
+    fn a_full_level_zero_sets_nothing_aside() {
+        let mut pool = RayPool::<16>::new();
+        pool.configure(1, 2, Some(2)).unwrap();
+        // Level 0 holds 4; with 3 of them taken, only its depth's worth is left.
+        for _ in 0..3 {
+            pool.admit(ray(0), Stage::Trace).unwrap();
+        }
+        assert!(!pool.reserve());
+        assert!(pool.admit_reserved(ray(0), Stage::Trace).is_err());
+    }
 
     fn ray(class: u16) -> RayMsg {
         RayMsg {

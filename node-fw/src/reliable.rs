@@ -142,6 +142,8 @@ impl<const W: usize> Channel<W> {
     }
 
     /// Queues a data message; hands it back when the window is full.
+    // Handing it back is the point: see `Links::try_send`.
+    #[allow(clippy::result_large_err)]
     pub fn send(&mut self, msg: Message) -> Result<(), Message> {
         // Before building a frame: a node offers what it has every poll, and
         // against a full window each offer would copy a whole frame for nothing.

@@ -46,7 +46,7 @@ impl Links for Script {
     fn recv(&mut self, port: Port) -> Option<Message> {
         let i = self.inbox.iter().position(|(p, _)| *p == port)?;
         let msg = self.inbox.remove(i).1;
-        self.rays_received += usize::from(matches!(msg, Message::Ray(_)));
+        self.rays_received += usize::from(msg.is_ray());
         Some(msg)
     }
     fn try_send(&mut self, _: Port, msg: Message) -> Result<(), Message> {
@@ -54,7 +54,7 @@ impl Links for Script {
             return Err(msg);
         }
         self.sent += 1;
-        self.rays_sent += usize::from(matches!(msg, Message::Ray(_)));
+        self.rays_sent += usize::from(msg.is_ray());
         Ok(())
     }
     fn peer_restarted(&mut self) -> Option<Port> {
@@ -152,6 +152,8 @@ fn arb_message() -> impl Strategy<Value = Message> {
             })
         ),
         6 => arb_ray().prop_map(Message::Ray),
+        3 => arb_ray().prop_map(Message::GrantedRay),
+        2 => any::<u16>().prop_map(Message::Grant),
         2 => (any::<u16>(), any::<bool>()).prop_map(|(tag, accepted)| Message::RayReply(RayReply { tag, accepted })),
         1 => Just(Message::Space),
         1 => (any::<u32>(), any::<u64>(), any::<u64>(), any::<u16>()).prop_map(|(interval, running, waiting, extent)| {

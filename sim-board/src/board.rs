@@ -514,8 +514,9 @@ impl Board {
 
 /// Whether a message to the host shows the frame moving (periodic load
 /// reports do not: they keep coming from a stuck array; a node's final
-/// report, the answer to `Finish`, does).
-fn progresses(msg: &Message) -> bool {
+/// report, the answer to `Finish`, does). The host's watchdogs, on this
+/// board and over serial links, count only these.
+pub fn progresses(msg: &Message) -> bool {
     match msg {
         Message::Load(l) => l.interval == node_fw::node::FINAL_INTERVAL,
         // Boundaries may slide for ever while rays are stuck: not progress.

@@ -15,8 +15,12 @@ pub struct CostModel {
     pub shade: u64,
     /// Creating one initial ray (camera direction, grid entry).
     pub create: u64,
-    /// Handling one received or sent ray message.
+    /// Handling one received or sent ray message whose acknowledgement
+    /// rides on its reply.
     pub ray_message: u64,
+    /// Handling one received or sent ray passed on a grant: no reply, so its
+    /// acknowledgement takes a frame of its own.
+    pub granted_ray: u64,
     /// Handling one received or sent message of any other kind: replies,
     /// space notices, retirements and control, all a few bytes to a ray's 60.
     pub short_message: u64,
@@ -26,28 +30,30 @@ impl Default for CostModel {
     /// Cortex-M3 instructions of the node firmware, measured on the emulated
     /// mps2-an385 (`scripts/firmware.sh` runs the `kernels` binary under
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
-    /// test) 115.2; a sphere test over a mostly-missing list 224.0; a walk's
-    /// set-up (the received ray's line checked, the walk resumed) 767.9; a
-    /// shaded hit with one light and a mirror 7 758.0 (the surface and both
+    /// test) 120.6; a sphere test over a mostly-missing list 224.0; a walk's
+    /// set-up (the received ray's line checked, the walk resumed) 780.9; a
+    /// shaded hit with one light and a mirror 7 774.2 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for
     /// the children it spawns later); an initial
-    /// ray (pixel line, ray, entry cube) 3 231.8. Messages through a reliable
+    /// ray (pixel line, ray, entry cube) 3 241.8. Messages through a reliable
     /// channel: one end of a hop (the ray in its hand-packed wire form, the
     /// reply carrying the ray's ack, the reply's ack in a frame of its own)
-    /// 3 366.8, and of a ray reply with its ack alone 1 227.9, which stands
-    /// for every short message; a ray end is charged the difference, 2 139
+    /// 3 464.6, and of a ray reply with its ack alone 1 248.8, which stands
+    /// for every short message; a ray end is charged the difference, 2 216
     /// (the UART's bytes are the link model's). A sender that has more for
     /// the neighbour sends the reply's ack on it, so real hops cost up to a
-    /// short frame less.
+    /// short frame less. One end of a hop on a grant (the ray, and its ack
+    /// in a frame of its own) 2 672.7.
     fn default() -> Self {
         Self {
-            cube_step: 115,
+            cube_step: 121,
             sphere_test: 224,
-            trace: 768,
-            shade: 7_758,
-            create: 3_232,
-            ray_message: 2_139,
-            short_message: 1_228,
+            trace: 781,
+            shade: 7_774,
+            create: 3_242,
+            ray_message: 2_216,
+            granted_ray: 2_673,
+            short_message: 1_249,
         }
     }
 }
@@ -61,13 +67,15 @@ impl CostModel {
     /// Cycles for one poll's work, by what they were spent on.
     pub fn split(&self, w: &Work) -> Busy {
         let short = w.received + w.sent - w.rays_received - w.rays_sent;
+        let answered = w.rays_received + w.rays_sent - w.granted_rays;
         Busy {
             compute: u64::from(w.cube_steps) * self.cube_step
                 + u64::from(w.sphere_tests) * self.sphere_test
                 + u64::from(w.shades) * self.shade
                 + u64::from(w.created) * self.create,
             setup: u64::from(w.traces) * self.trace,
-            messaging: u64::from(w.rays_received + w.rays_sent) * self.ray_message
+            messaging: u64::from(answered) * self.ray_message
+                + u64::from(w.granted_rays) * self.granted_ray
                 + u64::from(short) * self.short_message,
             polls: u64::from(w.is_busy()),
         }
@@ -151,11 +159,12 @@ mod tests {
             sent: 4,
             rays_received: 2,
             rays_sent: 1,
+            granted_rays: 1,
         };
         let split = c.split(&w);
-        assert_eq!(split.compute, 7 * 115 + 3 * 224 + 7_758 + 3_232);
-        assert_eq!(split.setup, 2 * 768);
-        assert_eq!(split.messaging, 3 * 2_139 + 6 * 1_228);
+        assert_eq!(split.compute, 7 * 121 + 3 * 224 + 7_774 + 3_242);
+        assert_eq!(split.setup, 2 * 781);
+        assert_eq!(split.messaging, 2 * 2_216 + 2_673 + 6 * 1_249);
         assert_eq!(split.total(), c.charge(&w));
     }
 }

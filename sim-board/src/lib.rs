@@ -16,7 +16,7 @@ pub mod link_spec;
 pub mod sim_links;
 mod slot;
 
-pub use board::{Board, HostEndpoint, RunStats, SimConfig, SimError, SimNode};
+pub use board::{Board, HostEndpoint, RunStats, SimConfig, SimError, SimNode, progresses};
 pub use cost::{Busy, CostModel, LinkModel};
 pub use faults::Faults;
 pub use link_spec::{LinkPreset, LinkSpec, Transfer};

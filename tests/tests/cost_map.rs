@@ -34,10 +34,13 @@ fn the_cost_map_accounts_for_each_nodes_busy_time() {
     // across the columns and then along the rows.
     let mut jagged = staggered.clone();
     jagged.slab_cuts = Some((0..4).map(|s| vec![0, 5 + 2 * s, 16 - s, 22 + s, 32]).collect());
-    // Measured within 1.9% per node, staggered or not. (Before the pool shared
-    // its spare slots, refusals made forwarding nodes pay up to 26% more.)
+    // Measured within 3.1% per node, staggered or not (median 0.9%). The map
+    // prices every hop as a ray on a grant; whether a ray goes on one depends
+    // on when the grants arrive, which the map cannot see (with a reply per
+    // ray it was within 1.9%). Before the pool shared its spare slots,
+    // refusals made forwarding nodes pay up to 26% more.
     for p in [even, staggered, jagged] {
-        let (node_error, total_error) = (0.03, 0.01);
+        let (node_error, total_error) = (0.04, 0.01);
         let r = render_partitioned(&s, &opts, p.clone()).unwrap();
         assert!(r.frame.sums == want.sums, "the partition changed the image");
         let costs = p.node_costs(&map);

@@ -405,15 +405,15 @@ fn link_presets_change_time_not_the_image() {
     };
     let (ideal_busy, dma_busy, irq_busy) = (sum(&ideal), sum(&dma), sum(&irq));
     assert_eq!((ideal_busy.compute, ideal_busy.setup), (irq_busy.compute, irq_busy.setup));
-    assert_eq!(ideal_busy.messaging, dma_busy.messaging, "no CPU per byte: the same messaging work");
-    // An interrupt a byte costs 50 cycles at each end of every byte; the
-    // nodes also pay for the bytes the host sends them, so at least this:
-    let sent: u64 = irq.bytes.iter().flatten().sum();
-    let neighbours: u64 = irq.bytes.iter().map(|b| b[..6].iter().sum::<u64>()).sum();
-    assert!(
-        irq_busy.messaging >= dma_busy.messaging + 50 * (sent + neighbours),
-        "{irq_busy:?} vs {dma_busy:?}"
-    );
+    // Which rays go on grants depends on timing, so the messages differ a
+    // little between links; an interrupt a byte adds 50 cycles at each end
+    // of every byte, sent or taken in.
+    let moved: u64 = irq.bytes.iter().chain(&irq.bytes_in).flatten().sum();
+    let handling = irq_busy.messaging - 50 * moved;
+    for (name, m) in [("dma", dma_busy.messaging), ("irq less its bytes", handling)] {
+        let gap = m.abs_diff(ideal_busy.messaging) as f64 / ideal_busy.messaging as f64;
+        assert!(gap < 0.05, "{name}: messaging {m} against {} on ideal links", ideal_busy.messaging);
+    }
     // 3 Mbaud at 100 MHz is 13 times slower a byte than the ideal link.
     assert!(irq.frame.makespan > ideal.frame.makespan);
     // Every byte a node sends a neighbour is a byte that neighbour takes in,

@@ -271,6 +271,25 @@ fn hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     (timer.ticks() - start, 2 * passed)
 }
 
+/// Passing each of `rays` over a hop on a grant: the ray through a reliable
+/// channel pair and the receiver's ack in a frame of its own, as when nothing
+/// goes back to carry it; no reply (per hop and end, bytes on the UART not
+/// included).
+fn granted_hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
+    let (mut a, mut b) = channel_pair();
+    let mut wire = (heapless::Vec::new(), [0; MAX_FRAME_LEN]);
+    let (mut passed, start) = (0u64, timer.ticks());
+    for round in 0..40u64 {
+        for ray in rays {
+            let _ = a.send(Message::GrantedRay(*ray));
+            pass(&mut a, &mut b, round, &mut wire, |m| core::hint::black_box(m.is_ray()));
+            pass(&mut b, &mut a, round, &mut wire, |_| true);
+            passed += 1;
+        }
+    }
+    (timer.ticks() - start, 2 * passed)
+}
+
 /// Passing a reply to each of `rays` through a reliable channel pair, both
 /// ends and the ack, each in a frame of its own (per message and end, bytes
 /// on the UART not included).
@@ -421,6 +440,8 @@ fn main() -> ! {
     let _ = writeln!(out, "kernel hop {} {n}", per_unit_x100(ticks, n));
     let (ticks, n) = replies(&mut timer, &rays);
     let _ = writeln!(out, "kernel reply {} {n}", per_unit_x100(ticks, n));
+    let (ticks, n) = granted_hops(&mut timer, &rays);
+    let _ = writeln!(out, "kernel hop_granted {} {n}", per_unit_x100(ticks, n));
     for (name, x100, n) in frame_parts(&mut timer, &rays) {
         let _ = writeln!(out, "kernel {name} {x100} {n}");
     }

@@ -35,6 +35,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.replies.iter_mut().for_each(Deque::clear);
         self.refused = [false; 6];
         self.space_due = [false; 6];
+        self.grants_held = [0; 6];
+        self.grants_given = [0; 6];
+        self.grants_due = [0; 6];
         self.hello_due = true;
         self.error_due = None;
         self.load_due = None;
@@ -58,6 +61,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 self.spheres_seen = 0;
                 self.render = None;
                 self.pool.clear();
+                self.grants_held = [0; 6];
+                self.grants_given = [0; 6];
+                self.grants_due = [0; 6];
                 self.phase = Phase::Loading;
             }
             Err(e) => self.fail_with(e),
@@ -137,6 +143,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         if let Err(e) = self.pool.configure(top, r.level_depth, r.shared_slots) {
             return self.fail(ErrorCode::PoolCapacity, e.capacity, e.needed);
         }
+        // The pool starts empty, with nothing set aside. Grants neighbours
+        // gave us stand: they may have started first.
+        self.grants_given = [0; 6];
+        self.grants_due = [0; 6];
         self.render = Some(r);
         self.cursor = 0;
         self.stride = scatter_stride(tile_pixels(&r.tile));

@@ -11,10 +11,15 @@
 //! with their pixel contribution and credit. `Finish` ends the frame; the node
 //! answers with its load report.
 //!
-//! **Passing a ray on** never blocks a receiver: a node always takes a ray off
-//! the link and admits it into its pool or refuses it ([`RayReply`]). The sender
-//! keeps the ray until it is admitted and retries after the receiver's
-//! [`Message::Space`]. With the class-levelled pool ([`crate::pool`]) this is
+//! **Passing a ray on** never blocks a receiver. Each node sets free level-0
+//! pool slots aside for its neighbours and grants them ([`Message::Grant`], up
+//! to [`GRANT_TARGET`] each, topped up in batches): a ray sent on a grant
+//! ([`Message::GrantedRay`]) takes its slot and is answered by nothing, and
+//! the sender forgets it once the reliable link has it. Without a grant the
+//! ray goes as [`Message::Ray`]: the receiver admits it or refuses it
+//! ([`RayReply`]), the sender keeps it until it is admitted and retries after
+//! the receiver's [`Message::Space`]. With the class-levelled pool
+//! ([`crate::pool`], where the argument for grants is written down) this is
 //! deadlock-free and loses nothing, whatever the queue depths.
 //!
 //! One file per part of the conversation: `broadcast` (scene, assignment,
@@ -54,6 +59,10 @@ pub const MAX_LIGHTS: usize = 8;
 type Children = Vec<(u8, RayMsg), { MAX_LIGHTS + 1 }>;
 /// Rays a node may have sent to one neighbour without a reply yet.
 pub const MAX_OUTSTANDING: usize = 4;
+/// Grants a node keeps with each neighbour (slots set aside for its rays);
+/// it tops them up once the neighbour holds half or fewer, so one `Grant`
+/// answers several rays.
+pub const GRANT_TARGET: u16 = 8;
 
 /// Work done in one [`Node::poll`], for a cost model or a profiler.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -76,6 +85,8 @@ pub struct Work {
     pub rays_received: u32,
     /// Of the messages sent, rays.
     pub rays_sent: u32,
+    /// Of the rays sent and received, those passed on a grant (no reply).
+    pub granted_rays: u32,
 }
 
 impl Work {
@@ -131,6 +142,12 @@ pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> 
     replies: [Deque<RayReply, MAX_OUTSTANDING>; 6],
     refused: [bool; 6],
     space_due: [bool; 6],
+    /// Per neighbour port: rays the neighbour has granted us and we have not used.
+    grants_held: [u16; 6],
+    /// Per neighbour port: slots we set aside for the neighbour's rays.
+    grants_given: [u16; 6],
+    /// Per neighbour port: of those, the ones not yet told.
+    grants_due: [u16; 6],
     hello_due: bool,
     error_due: Option<ErrorReport>,
     load_due: Option<u32>,
@@ -169,6 +186,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             replies: [const { Deque::new() }; 6],
             refused: [false; 6],
             space_due: [false; 6],
+            grants_held: [0; 6],
+            grants_given: [0; 6],
+            grants_due: [0; 6],
             hello_due: true,
             error_due: None,
             load_due: None,
@@ -225,6 +245,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             || self.error_due.is_some()
             || self.load_due.is_some()
             || self.space_due.iter().any(|&s| s)
+            || self.grants_due.iter().any(|&g| g > 0)
             || self.replies.iter().any(|q| !q.is_empty())
             || !self.control.is_empty()
             || [self.slide.outgoing.lo, self.slide.outgoing.hi].iter().flatten().any(|o| !o.done)
@@ -268,8 +289,11 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         for port in Port::ALL {
             while let Some(msg) = links.recv(port) {
                 work.received += 1;
-                if matches!(msg, Message::Ray(_)) {
+                if msg.is_ray() {
                     work.rays_received += 1;
+                }
+                if matches!(msg, Message::GrantedRay(_)) {
+                    work.granted_rays += 1;
                 }
                 if self.phase != Phase::Failed {
                     self.handle(port, msg);
@@ -316,6 +340,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             (Port::Host, Message::RenderStart(r)) => self.start_render(r),
             (Port::Host, Message::Finish(_)) => self.finish_frame(),
             (p, Message::Ray(ray)) if p != Port::Host => self.admit_ray(p, ray),
+            (p, Message::GrantedRay(ray)) if p != Port::Host => self.admit_granted(p, ray),
+            (p, Message::Grant(n)) if p != Port::Host => self.take_grant(p, n),
             // A neighbour that began its frame first may report an interval
             // while this node is still loading: the host starts the nodes one
             // by one, and a lossy host link delays some by resends. Until this
@@ -369,6 +395,8 @@ fn kind(msg: &Message) -> u32 {
         Message::Sync(_) => 20,
         Message::SyncAck(_) => 21,
         Message::SlideNote(_) => 22,
+        Message::Grant(_) => 23,
+        Message::GrantedRay(_) => 24,
     }
 }
 

@@ -7,7 +7,7 @@ use link_proto::{ErrorCode, RayMsg, RayReply};
 use crate::link::Port;
 use crate::pool::Stage;
 
-use super::{Node, Phase};
+use super::{GRANT_TARGET, Node, Phase};
 
 impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
     /// A neighbour passes a ray on: admitted to the pool or refused, and
@@ -27,6 +27,62 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             self.totals.refused += 1;
         }
         self.reply_to_ray(port, ray.tag, accepted);
+    }
+
+    /// A neighbour passes a ray on a grant we gave: it takes the slot we set
+    /// aside for it, and nothing is answered.
+    pub(super) fn admit_granted(&mut self, port: Port, ray: RayMsg) {
+        let Some(given) = self.grants_given.get_mut(port.index()).filter(|g| **g > 0) else {
+            // More rays than grants: a protocol violation.
+            return self.fail(ErrorCode::Unexpected, port as u32, 10);
+        };
+        *given -= 1;
+        if ray.class > self.pool.top() {
+            return self.fail(ErrorCode::ClassOverflow, u32::from(ray.class), u32::from(self.pool.top()));
+        }
+        if self.pool.admit_reserved(ray, Stage::Trace).is_err() {
+            self.fail(ErrorCode::Unexpected, port as u32, 11);
+        }
+    }
+
+    /// A neighbour grants us `n` more rays: rays held back after its
+    /// refusals may go on them at once.
+    pub(super) fn take_grant(&mut self, port: Port, n: u16) {
+        if let Some(held) = self.grants_held.get_mut(port.index()) {
+            *held = held.saturating_add(n);
+        }
+        for _ in 0..n.min(GRANT_TARGET) {
+            self.retry_refused(port);
+        }
+    }
+
+    /// Sets free slots aside for every neighbour holding half its grants or
+    /// fewer, up to [`GRANT_TARGET`] each, as far as the pool allows (it
+    /// keeps slots open for rays not granted: see [`crate::pool::RayPool::reserve`]).
+    pub(super) fn top_up_grants(&mut self) {
+        let Some(a) = self.assign.filter(|_| self.phase == Phase::Rendering) else { return };
+        for port in Port::NEIGHBOURS {
+            if crate::wiring::neighbour_of(usize::from(self.id), port, a.array).is_none() {
+                continue;
+            }
+            let i = port.index();
+            let (Some(given), Some(due)) =
+                (self.grants_given.get(i).copied(), self.grants_due.get(i).copied())
+            else {
+                continue;
+            };
+            if given - due > GRANT_TARGET / 2 {
+                continue;
+            }
+            let mut more = 0;
+            while given + more < GRANT_TARGET && self.pool.reserve() {
+                more += 1;
+            }
+            if let (Some(g), Some(d)) = (self.grants_given.get_mut(i), self.grants_due.get_mut(i)) {
+                *g += more;
+                *d += more;
+            }
+        }
     }
 
     /// Queues the reply to a ray from `port`.
@@ -58,6 +114,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             self.slot_freed();
             // The neighbour had room: the next ray held back may have it too.
             self.retry_refused(port);
+        } else if self.holds_grant(port) {
+            // Refused for room, but a grant needs none.
+            self.pool.set_stage(reply.tag, Stage::Outbound(port));
         } else {
             self.pool.set_stage(reply.tag, Stage::Refused(port));
         }
@@ -83,9 +142,19 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// for it if one of them has at least its class (the neighbour had no
     /// slot for that one, so none for this), else at once. A higher class must
     /// not wait: it may take levels the held ones cannot, and holding it back
-    /// would break the class levels' guarantee of progress.
+    /// would break the class levels' guarantee of progress. With a grant in
+    /// hand nothing waits: a granted ray needs no room.
     pub(super) fn leave_by(&self, port: Port, class: u16) -> Stage {
-        if self.pool.refused_at_least(port, class) { Stage::Refused(port) } else { Stage::Outbound(port) }
+        if !self.holds_grant(port) && self.pool.refused_at_least(port, class) {
+            Stage::Refused(port)
+        } else {
+            Stage::Outbound(port)
+        }
+    }
+
+    /// Whether the neighbour on `port` has granted us a ray we have not used.
+    fn holds_grant(&self, port: Port) -> bool {
+        self.grants_held.get(port.index()).is_some_and(|&g| g > 0)
     }
 
     /// A slot freed: tell every neighbour we refused that it may retry.

@@ -24,7 +24,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// Sends what is due, in order of urgency, as far as the links take it.
     pub(super) fn transmit<L: Links>(&mut self, links: &mut L, work: &mut Work) {
         let mut send = |links: &mut L, port: Port, msg: Message| {
-            let ray = matches!(msg, Message::Ray(_));
+            let ray = msg.is_ray();
+            let granted = matches!(msg, Message::GrantedRay(_));
             let ok = links.try_send(port, msg).is_ok();
             // Not `work.sent += u32::from(ok)`: rustc 1.95 at opt-level >= 2
             // drops the increment when the same bool is branched on after
@@ -34,6 +35,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 work.sent += 1;
                 if ray {
                     work.rays_sent += 1;
+                }
+                if granted {
+                    work.granted_rays += 1;
                 }
             }
             ok
@@ -59,6 +63,15 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             }
             if let Some(due) = self.space_due.get_mut(p).filter(|due| **due) {
                 *due = !send(links, port, Message::Space);
+            }
+        }
+        self.top_up_grants();
+        for port in Port::NEIGHBOURS {
+            let p = port.index();
+            if let Some(due) = self.grants_due.get_mut(p).filter(|due| **due > 0)
+                && send(links, port, Message::Grant(*due))
+            {
+                *due = 0;
             }
         }
         self.send_rays(links, &mut send);
@@ -112,8 +125,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             n += 1;
             // Whether the port can take it, before the ray is copied out.
             let Some(port) = self.pool.leaves_by(i) else { continue };
-            let waiting =
-                self.outstanding.get(port.index()).is_some_and(|&o| usize::from(o) >= MAX_OUTSTANDING);
+            // A ray on a grant needs no reply, so it does not wait for one.
+            let granted = self.grants_held.get(port.index()).is_some_and(|&g| g > 0) && port != Port::Host;
+            let waiting = !granted
+                && self.outstanding.get(port.index()).is_some_and(|&o| usize::from(o) >= MAX_OUTSTANDING);
             let Some(port_full) = full.get_mut(port.index()).filter(|f| !**f) else { continue };
             if waiting {
                 // Replies come back only with what arrives: full for this pass.
@@ -130,6 +145,25 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                             break;
                         }
                         continue;
+                    }
+                    self.pool.remove(i);
+                    self.slot_freed();
+                    n -= 1;
+                }
+                Stage::Outbound(port) if granted => {
+                    let Some(mut ray) = self.pool.get(i).map(|s| s.ray) else { continue };
+                    ray.class = ray.class.saturating_add(1);
+                    ray.tag = 0;
+                    if !send(links, port, Message::GrantedRay(ray)) {
+                        if close(port_full, &mut open) {
+                            break;
+                        }
+                        continue;
+                    }
+                    // The link delivers it and the neighbour set a slot aside:
+                    // the ray is theirs now.
+                    if let Some(held) = self.grants_held.get_mut(port.index()) {
+                        *held -= 1;
                     }
                     self.pool.remove(i);
                     self.slot_freed();
