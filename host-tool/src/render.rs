@@ -297,7 +297,7 @@ fn check_pool(
     let [x, y, z] = opts.array;
     if levels as usize > node_fw::pool::MAX_LEVELS {
         return Err(HostError::Capacity(format!(
-            "rays on a {x}x{y}x{z} array{sliding} at max_depth {} take {levels} class levels; a node's pool \
+            "rays on the {x}x{y}x{z} array{sliding} at max_depth {} take {levels} class levels; a node's pool \
              has at most {}: use a smaller array, a lower max_depth, or --balance static",
             scene.max_depth,
             node_fw::pool::MAX_LEVELS

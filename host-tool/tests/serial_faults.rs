@@ -138,7 +138,7 @@ fn run_boards(array: [u16; 3], masters: Vec<TTYPort>, fault: Fault, stop: &Atomi
                     Port::Host => to_host[i].extend_from_slice(bytes),
                     p => {
                         if let Some(j) = wiring::neighbour_of(i, p, array) {
-                            wire.push((usize::from(j), opposite(p), bytes.to_vec()));
+                            wire.push((usize::from(j), p.opposite(), bytes.to_vec()));
                         }
                     }
                 }
@@ -180,18 +180,6 @@ fn run_boards(array: [u16; 3], masters: Vec<TTYPort>, fault: Fault, stop: &Atomi
 /// Rays node has traced in this frame.
 fn traced(node: &SimNode) -> usize {
     node.totals().rays as usize
-}
-
-fn opposite(p: Port) -> Port {
-    match p {
-        Port::PosX => Port::NegX,
-        Port::NegX => Port::PosX,
-        Port::PosY => Port::NegY,
-        Port::NegY => Port::PosY,
-        Port::PosZ => Port::NegZ,
-        Port::NegZ => Port::PosZ,
-        Port::Host => Port::Host,
-    }
 }
 
 const SCENE: [&str; 8] = ["--spheres", "30", "--seed", "3", "--grid", "12x12x12", "--size", "32x32"];
