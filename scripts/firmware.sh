@@ -7,12 +7,6 @@
 # qemu-system-arm; scripts/test.sh installs them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# The host and firmware workspaces share target/, and with it cargo's cache
-# of what rustc said about each target. In fresh clones that cache twice held
-# a failed probe (rustc given another compiler's error output as source), and
-# every later firmware build then failed the same way. Each cargo run asks
-# rustc afresh instead (tens of milliseconds).
-export CARGO_CACHE_RUSTC_INFO=0
 
 FLASH_BUDGET=$((128 * 1024))
 RAM_BUDGET=$((64 * 1024))

@@ -6,12 +6,6 @@
 # rustup, qemu-system-arm through apt-get) or says how.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# The host and firmware workspaces share target/, and with it cargo's cache
-# of what rustc said about each target. In fresh clones that cache twice held
-# a failed probe (rustc given another compiler's error output as source), and
-# every later firmware build then failed the same way. Each cargo run asks
-# rustc afresh instead (tens of milliseconds).
-export CARGO_CACHE_RUSTC_INFO=0
 
 step() { printf '\n== %s\n' "$*"; }
 

@@ -17,40 +17,75 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), HostError> {
 /// the targets as they were. (A rename that fails after others succeeded,
 /// which a rename within one directory does only on a failing disk, still
 /// leaves the earlier ones in place.)
+///
+/// A target that exists and is no regular file (`/dev/null`, a FIFO) is
+/// written in place, once the others are staged: renaming over it would
+/// replace the device with a file. A symbolic link is followed, so the
+/// link stays and its target is replaced.
 pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<(), HostError> {
     let mut staged = Vec::with_capacity(files.len());
+    let mut in_place = Vec::new();
     for &(path, bytes) in files {
-        match stage(path, bytes) {
-            Ok(tmp) => staged.push((tmp, path)),
+        let target = resolve(path);
+        if is_special(&target) {
+            in_place.push((target, bytes));
+            continue;
+        }
+        match stage(&target, bytes) {
+            Ok(tmp) => staged.push((tmp, target)),
             Err(e) => {
                 staged.iter().for_each(|(tmp, _)| drop(std::fs::remove_file(tmp)));
                 return Err(e);
             }
         }
     }
-    let mut renamed = staged.into_iter().map(|(tmp, path)| {
-        std::fs::rename(&tmp, path).map_err(|e| {
+    for (tmp, target) in staged {
+        std::fs::rename(&tmp, &target).map_err(|e| {
             let _ = std::fs::remove_file(&tmp);
-            cannot_write(path, e)
-        })
-    });
-    renamed.try_for_each(|r| r)
+            cannot_write(&target, e)
+        })?;
+    }
+    for (target, bytes) in in_place {
+        std::fs::write(&target, bytes).map_err(|e| cannot_write(&target, e))?;
+    }
+    Ok(())
 }
 
 /// Checks, before a long run, that each of `paths` can be written: its
 /// directory exists and takes a new file, and the path is not a directory.
+/// A device or FIFO is left alone: opening one to try it would already hand
+/// its reader an empty stream.
 pub fn check_writable(paths: &[&Path]) -> Result<(), HostError> {
     for (i, &path) in paths.iter().enumerate() {
         if paths.iter().skip(i + 1).any(|&other| other == path) {
             return Err(HostError::Input(format!("two outputs would both be written to {}", path.display())));
         }
-        if path.is_dir() {
+        let target = resolve(path);
+        if target.is_dir() {
             return Err(HostError::Io(format!("cannot write {}: it is a directory", path.display())));
         }
-        let tmp = stage(path, &[])?;
+        if is_special(&target) {
+            continue;
+        }
+        let tmp = stage(&target, &[])?;
         let _ = std::fs::remove_file(tmp);
     }
     Ok(())
+}
+
+/// The file `path` names: an existing symbolic link's target, else `path`.
+fn resolve(path: &Path) -> PathBuf {
+    let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
+    if is_link {
+        std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
+    } else {
+        path.to_path_buf()
+    }
+}
+
+/// Whether `path` exists and is neither a regular file nor a directory.
+fn is_special(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
 }
 
 /// Writes `bytes` to a new temporary file beside `path`; returns its path.

@@ -323,3 +323,40 @@ fn link_settings_are_checked() {
     let qemu = ["render", "--size", "8x8", "--backend", "qemu", "--link", "ideal"];
     fails("qemu-link", &qemu, None, 17, "model the in-memory board's links");
 }
+
+/// Outputs written atomically must not rename a file over what is not one:
+/// `--plot /dev/null` once replaced the device with a regular file. A FIFO
+/// stays a FIFO and its reader gets the plot; a symbolic link stays a link
+/// and its target gets the table.
+#[test]
+fn outputs_keep_fifos_and_symbolic_links() {
+    use std::os::unix::fs::FileTypeExt;
+    let scratch = scratch("special");
+    let dir = scratch.path();
+    let fifo = dir.join("plot.fifo");
+    assert!(Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()), "mkfifo");
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read(fifo).expect("the FIFO reads"))
+    };
+    std::fs::write(dir.join("real.csv"), "old").unwrap();
+    std::os::unix::fs::symlink(dir.join("real.csv"), dir.join("loads.csv")).unwrap();
+    let args = ["render", "--spheres", "20", "--size", "16x16", "--array", "2x1x1", "--plot", "plot.fifo"];
+    let out = host_tool(dir, &args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let plot = reader.join().expect("reader");
+    assert!(plot.starts_with(b"\x89PNG"), "the FIFO's reader got the plot ({} bytes)", plot.len());
+    assert!(std::fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo(), "still a FIFO");
+    assert!(
+        std::fs::symlink_metadata(dir.join("loads.csv")).unwrap().file_type().is_symlink(),
+        "still a link"
+    );
+    let table = std::fs::read_to_string(dir.join("real.csv")).unwrap();
+    assert!(table.lines().count() == 3, "the link's target holds the loads: {table}");
+    let stray: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".tmp-"))
+        .collect();
+    assert!(stray.is_empty(), "temporary files left: {stray:?}");
+}
