@@ -76,10 +76,7 @@ pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> St
             })
         })
         .collect();
-    let total = r.busy.iter().flatten().fold(Busy::default(), |mut a, b| {
-        a += *b;
-        a
-    });
+    let total = r.busy.iter().flatten().copied().sum::<Busy>();
     let waiting: u64 = f.loads.iter().flatten().map(|l| l.waiting).sum();
     let v = json!({
         "makespan": f.makespan,

@@ -121,10 +121,7 @@ fn run(
     opts.balance = None;
     let r = render_sim(scene, &opts)
         .map_err(|e| e.context(&format!("{side}x{side}x{side} {}", layout.name())))?;
-    let busy = r.busy.iter().flatten().fold(Busy::default(), |mut a, b| {
-        a += *b;
-        a
-    });
+    let busy = r.busy.iter().flatten().copied().sum::<Busy>();
     let nodes = u32::from(side).pow(3);
     let makespan = r.frame.makespan;
     let host_wire = r.bytes.iter().map(|b| b[6]).max().unwrap_or(0) * opts.sim.host_link.byte_cycles();

@@ -331,12 +331,10 @@ fn flush(link: &mut Link) -> std::io::Result<bool> {
 /// fails, so the run ends naming the node instead of waiting out the
 /// time-out.
 fn read_available(link: &mut Link) -> std::io::Result<Vec<u8>> {
-    let mut buf = vec![0u8; 4096];
+    // On the stack: most passes find nothing, and need no allocation.
+    let mut buf = [0u8; 4096];
     match link.port.read(&mut buf) {
-        Ok(n) => {
-            buf.truncate(n);
-            Ok(buf)
-        }
+        Ok(n) => Ok(buf.get(..n).unwrap_or_default().to_vec()),
         Err(e)
             if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted) =>
         {

@@ -105,6 +105,15 @@ impl Busy {
     }
 }
 
+impl std::iter::Sum for Busy {
+    fn sum<I: Iterator<Item = Busy>>(iter: I) -> Busy {
+        iter.fold(Busy::default(), |mut total, b| {
+            total += b;
+            total
+        })
+    }
+}
+
 impl std::ops::AddAssign for Busy {
     fn add_assign(&mut self, other: Busy) {
         self.compute += other.compute;

@@ -397,12 +397,7 @@ fn link_presets_change_time_not_the_image() {
     let ideal = with(LinkPreset::Ideal, None);
     let dma = with(LinkPreset::F413, Some(Transfer::Dma));
     let irq = with(LinkPreset::F413, None);
-    let sum = |r: &host_tool::render::RenderResult| {
-        r.busy.iter().flatten().fold(sim_board::Busy::default(), |mut a, b| {
-            a += *b;
-            a
-        })
-    };
+    let sum = |r: &host_tool::render::RenderResult| r.busy.iter().flatten().copied().sum::<sim_board::Busy>();
     let (ideal_busy, dma_busy, irq_busy) = (sum(&ideal), sum(&dma), sum(&irq));
     assert_eq!((ideal_busy.compute, ideal_busy.setup), (irq_busy.compute, irq_busy.setup));
     // Which rays go on grants depends on timing, so the messages differ a

@@ -8,6 +8,7 @@ use link_proto::{Assign, ErrorCode, LightMsg, RenderStart, SceneHeader, SphereMs
 use crate::cube_box::CubeBox;
 use crate::error::Error;
 use crate::geometry::{Grid, Point};
+use crate::link::Port;
 use crate::load::{IntervalClock, LoadMeter};
 use crate::pool::class_bound;
 use crate::slide::SlideState;
@@ -38,6 +39,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.grants_held = [0; 6];
         self.grants_given = [0; 6];
         self.grants_due = [0; 6];
+        self.neighbours = [false; 6];
         self.hello_due = true;
         self.error_due = None;
         self.load_due = None;
@@ -83,6 +85,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 // A board learns which node it is from its assignment.
                 self.id = id;
                 self.assign = Some(a);
+                self.neighbours = Port::NEIGHBOURS
+                    .map(|p| crate::wiring::neighbour_of(usize::from(id), p, a.array).is_some());
             }
             Err(e) => self.fail_with(e),
         }

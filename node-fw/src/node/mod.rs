@@ -148,6 +148,8 @@ pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> 
     grants_given: [u16; 6],
     /// Per neighbour port: of those, the ones not yet told.
     grants_due: [u16; 6],
+    /// Per neighbour port: whether the array has a node there (from the assignment).
+    neighbours: [bool; 6],
     hello_due: bool,
     error_due: Option<ErrorReport>,
     load_due: Option<u32>,
@@ -189,6 +191,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             grants_held: [0; 6],
             grants_given: [0; 6],
             grants_due: [0; 6],
+            neighbours: [false; 6],
             hello_due: true,
             error_due: None,
             load_due: None,

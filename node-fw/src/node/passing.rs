@@ -60,12 +60,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// fewer, up to [`GRANT_TARGET`] each, as far as the pool allows (it
     /// keeps slots open for rays not granted: see [`crate::pool::RayPool::reserve`]).
     pub(super) fn top_up_grants(&mut self) {
-        let Some(a) = self.assign.filter(|_| self.phase == Phase::Rendering) else { return };
-        for port in Port::NEIGHBOURS {
-            if crate::wiring::neighbour_of(usize::from(self.id), port, a.array).is_none() {
-                continue;
-            }
-            let i = port.index();
+        if self.phase != Phase::Rendering {
+            return;
+        }
+        for (i, _) in self.neighbours.into_iter().enumerate().filter(|&(_, wired)| wired) {
             let (Some(given), Some(due)) =
                 (self.grants_given.get(i).copied(), self.grants_due.get(i).copied())
             else {
