@@ -1,5 +1,5 @@
 //! Errors of the host tool: each names the problem in one line and maps to a
-//! documented, distinct exit code (see the README).
+//! documented, distinct exit code (see docs/cli.md).
 
 use std::fmt;
 

@@ -46,7 +46,7 @@ enum Command {
 #[derive(Subcommand)]
 enum ReportCommand {
     /// The stiff and extreme cases of the numerics notes: a Markdown table of
-    /// what each must do and what it did (the README shows it). Exits 4 if any fails.
+    /// what each must do and what it did (docs/arithmetic.md shows it). Exits 4 if any fails.
     Stiff {
         /// Also write the table here.
         #[arg(long, value_name = "FILE.md")]
@@ -118,7 +118,7 @@ struct BoardBenchArgs {
 
 #[derive(Args, Clone)]
 struct SceneArgs {
-    /// Scene file (JSON; schema in the README). Without it, a random scene is made.
+    /// Scene file (JSON; schema in docs/cli.md). Without it, a random scene is made.
     #[arg(long, value_name = "FILE.json", conflicts_with_all = ["spheres", "seed", "volume_ratio"])]
     scene: Option<PathBuf>,
     /// Random scene: number of spheres.

@@ -76,7 +76,7 @@ impl PaperConfig {
 
 /// The proportional policy's settings: gamma 4 (ALL's stable choice), a 15% dead band
 /// (at 10% two of the 16 `bench paper` configurations moved over 1% of their
-/// boundaries per interval in steady state; see the README).
+/// boundaries per interval in steady state; see docs/partition-and-sliding.md).
 pub const PROPORTIONAL: SlidePolicy = SlidePolicy::Proportional { gamma: 4 << 16, deadband: 9830 };
 
 /// How a balanced run slides.
@@ -123,7 +123,7 @@ fn run(
 /// The render options of a run: one slot kept per class level and the rest
 /// shared, as `host-tool render` does by default. The links are the ideal
 /// preset's: the paper's experiments are about balancing the nodes' work,
-/// and its tables in the README were measured on these links.
+/// and its tables in docs/partition-and-sliding.md were measured on these links.
 fn options(side: [u16; 3], cfg: &PaperConfig, initial: Initial) -> RenderOptions {
     let mut opts = RenderOptions::new(side);
     opts.sim = sim_board::SimConfig::with_links(side, sim_board::LinkPreset::Ideal);
