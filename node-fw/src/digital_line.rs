@@ -28,7 +28,7 @@
 //! continues bit-identically.
 
 use crate::error::{Error, Field};
-use crate::geometry::{Grid, Line};
+use crate::geometry::{Grid, Line, zip3};
 use crate::limits::{DIR_FRAC, MAX_BOUNDARY_RAW, ONE, Scalar};
 
 /// Exact integer walk of the unit cubes along a [`Line`].
@@ -64,6 +64,26 @@ impl Ratio {
     }
 }
 
+/// A parameter within one cube, `t = num / den * 2^14`, both parts unsigned
+/// 32-bit (`num` a boundary distance up to [`MAX_BOUNDARY_RAW`], `den` a
+/// direction component's magnitude up to 2^31): a received ray's set-up
+/// compares these, and on a Cortex-M3 a cross product of two `u32` is one
+/// instruction where one of [`Ratio`]'s is a library call.
+#[derive(Clone, Copy)]
+struct CubeRatio {
+    num: u32,
+    den: u32,
+}
+
+impl CubeRatio {
+    fn lt(self, other: CubeRatio) -> bool {
+        u64::from(self.num) * u64::from(other.den) < u64::from(other.num) * u64::from(self.den)
+    }
+}
+
+// Boundary distances fit `u32` (so their products with direction components fit `u64`).
+const _: () = assert!(MAX_BOUNDARY_RAW < u32::MAX as i64);
+
 impl DigitalLine {
     /// Starts the walk where the line enters the grid, at `t >= 0`.
     ///
@@ -89,47 +109,34 @@ impl DigitalLine {
     /// Fails if the line does not pass through the closed cube `cell` ahead of
     /// its origin: such a state cannot come from a real walk.
     pub fn resume(line: &Line, cell: [i32; 3]) -> Result<Self, Error> {
-        let o = line.origin();
-        let d = line.dir();
-        let mut walk =
-            DigitalLine { cell, step: [0; 3], abs_d: [0; 3], origin: o, inc: [0; 3], e: [0; 3], next: 0 };
-        let mut n_all = [0i64; 3];
-        let mut entry = Ratio { num: 0, den: 1 };
-        for axis in 0..3 {
-            let (oi, di, ci) =
-                (i64::from(get32(&o, axis)), i64::from(get32(&d, axis)), i64::from(get32(&cell, axis)));
-            let lower = ci * ONE;
-            let n = match di.signum() {
-                1 => lower + ONE - oi,
-                -1 => oi - lower,
-                _ if oi >= lower && oi <= lower + ONE => 0,
-                _ => return Err(Error::OutOfRange(Field::Cell)),
-            };
-            if di != 0 {
-                if !(0..=MAX_BOUNDARY_RAW).contains(&n) {
-                    return Err(Error::OutOfRange(Field::Cell));
-                }
-                let enter_here = Ratio { num: n - ONE, den: di.abs() };
-                if entry.lt(enter_here) {
-                    entry = enter_here;
-                }
-            }
-            set(&mut walk.step, axis, di.signum() as i32);
-            set(&mut walk.abs_d, axis, di.abs());
-            set(&mut n_all, axis, n);
-        }
-        if walk.abs_d == [0; 3] {
+        // Straight-line code over the three axes, the walk built once at the
+        // end: this runs for every ray a node receives, and a loop over
+        // indexed arrays and a zeroed walk filled in field by field cost half
+        // of it again on a Cortex-M3.
+        let (origin, d) = (line.origin(), line.dir());
+        let [n0, n1, n2] = zip3(zip3(origin, d, |o, d| (o, d)), cell, |(o, d), c| boundary_distance(o, d, c));
+        let n = [n0?, n1?, n2?];
+        let abs_d = d.map(i32::unsigned_abs);
+        if abs_d.iter().all(|&d| d == 0) {
             return Err(Error::OutOfRange(Field::Direction));
         }
-        walk.inc = walk.abs_d.map(|d| ONE * d);
-        walk.e = [(0, 1), (0, 2), (1, 2)].map(|(i, j)| walk.difference(&n_all, i, j));
-        walk.next = walk.first_axis();
+        // The cube is entered when the last moving axis enters its slab (an
+        // axis whose slab holds the origin was entered at t <= 0).
+        let entry = zip3(n, abs_d, |n, den| CubeRatio { num: n.saturating_sub(ONE as u32), den })
+            .into_iter()
+            .filter(|r| r.den != 0)
+            .fold(CubeRatio { num: 0, den: 1 }, |latest, r| if latest.lt(r) { r } else { latest });
+        let e = [difference(n, abs_d, 0, 1), difference(n, abs_d, 0, 2), difference(n, abs_d, 1, 2)];
+        let next = first_axis(e);
         // The cube must be entered no later than it is left.
-        let exit = Ratio { num: walk.boundary(walk.next), den: get(&walk.abs_d, walk.next) };
+        let exit =
+            CubeRatio { num: n.get(next).copied().unwrap_or(0), den: abs_d.get(next).copied().unwrap_or(1) };
         if exit.lt(entry) {
             return Err(Error::OutOfRange(Field::Cell));
         }
-        Ok(walk)
+        let abs_d = abs_d.map(i64::from);
+        let step = d.map(i32::signum);
+        Ok(DigitalLine { cell, step, abs_d, origin, inc: abs_d.map(|d| ONE * d), e, next })
     }
 
     /// The current unit cube.
@@ -189,23 +196,53 @@ impl DigitalLine {
     /// no later than `j > i` iff `e_ij <= 0`, that is, iff its entry is negative.
     #[inline]
     fn first_axis(&self) -> usize {
-        let [e01, e02, e12] = self.e;
-        match (e01 < 0, e02 < 0, e12 < 0) {
-            (true, true, _) => 0,
-            (true, false, _) | (false, _, false) => 2,
-            (false, _, true) => 1,
-        }
+        first_axis(self.e)
     }
+}
 
-    /// `e_ij - 1` (i < j) for boundary distances `n`; a moving axis always
-    /// goes before one that does not move (whose pairs never change, as its
-    /// `ONE |D|` is 0).
-    fn difference(&self, n: &[i64; 3], i: usize, j: usize) -> i64 {
-        match (get(&self.abs_d, i) != 0, get(&self.abs_d, j) != 0) {
-            (true, true) => get(n, i) * get(&self.abs_d, j) - get(n, j) * get(&self.abs_d, i) - 1,
-            (true, false) => i64::MIN,
-            _ => i64::MAX,
-        }
+/// Lowest axis among those whose boundary is crossed first, from the
+/// differences `e_ij - 1`: axis `i` goes no later than `j > i` iff `e_ij <= 0`,
+/// that is, iff its entry is negative.
+#[inline]
+fn first_axis([e01, e02, e12]: [i64; 3]) -> usize {
+    match (e01 < 0, e02 < 0, e12 < 0) {
+        (true, true, _) => 0,
+        (true, false, _) | (false, _, false) => 2,
+        (false, _, true) => 1,
+    }
+}
+
+/// `e_ij - 1` (i < j) for boundary distances `n`; a moving axis always
+/// goes before one that does not move (whose pairs never change, as its
+/// `ONE |D|` is 0).
+#[inline]
+fn difference(n: [u32; 3], abs_d: [u32; 3], i: usize, j: usize) -> i64 {
+    let (ni, nj) = (n.get(i).copied().unwrap_or(0), n.get(j).copied().unwrap_or(0));
+    let (di, dj) = (abs_d.get(i).copied().unwrap_or(0), abs_d.get(j).copied().unwrap_or(0));
+    match (di != 0, dj != 0) {
+        // Each product is under 2^63: their difference fits `i64`.
+        (true, true) => (u64::from(ni) * u64::from(dj)) as i64 - (u64::from(nj) * u64::from(di)) as i64 - 1,
+        (true, false) => i64::MIN,
+        _ => i64::MAX,
+    }
+}
+
+/// `N`: the raw distance along one axis from the origin `o` to the boundary
+/// of cell `c` ahead in the direction of travel `d`; 0 for an axis that does
+/// not move, whose origin must then lie in the cell's closed slab. Fails for
+/// a cell behind the origin or farther than any walk reaches.
+#[inline]
+fn boundary_distance(o: i32, d: i32, c: i32) -> Result<u32, Error> {
+    let (o, lower) = (i64::from(o), i64::from(c) * ONE);
+    let n = match d.signum() {
+        1 => lower + ONE - o,
+        -1 => o - lower,
+        _ if o >= lower && o <= lower + ONE => return Ok(0),
+        _ => return Err(Error::OutOfRange(Field::Cell)),
+    };
+    match u32::try_from(n) {
+        Ok(n) if i64::from(n) <= MAX_BOUNDARY_RAW => Ok(n),
+        _ => Err(Error::OutOfRange(Field::Cell)),
     }
 }
 
@@ -267,10 +304,4 @@ fn get(a: &[i64; 3], i: usize) -> i64 {
 
 fn get32(a: &[i32; 3], i: usize) -> i32 {
     a.get(i).copied().unwrap_or(0)
-}
-
-fn set<T>(a: &mut [T; 3], i: usize, v: T) {
-    if let Some(slot) = a.get_mut(i) {
-        *slot = v;
-    }
 }

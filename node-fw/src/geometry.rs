@@ -71,6 +71,13 @@ impl Point {
     }
 }
 
+/// `d.d` of raw components, exact: each square is at most 2^62, so the sum
+/// fits `u64` and needs no 128-bit arithmetic, which a Cortex-M3 calls a
+/// library for (this runs for every ray a node receives).
+fn squared_length(d: [i32; 3]) -> u64 {
+    d.iter().map(|&c| i64::from(c).unsigned_abs().pow(2)).sum()
+}
+
 /// A unit direction in Q2.30, `|d.d - 1| <= 2^-20`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Direction {
@@ -80,9 +87,9 @@ pub struct Direction {
 impl Direction {
     /// A direction from raw Q2.30 components, which must form a unit vector.
     pub fn from_bits(raw: [i32; 3]) -> Result<Self, Error> {
-        let len2: i128 = raw.iter().map(|&d| i128::from(d) * i128::from(d)).sum();
-        let unit = i128::from(DIR_ONE) * i128::from(DIR_ONE);
-        if (len2 - unit).abs() <= MAX_UNIT_ERROR_RAW {
+        let len2 = squared_length(raw);
+        let unit = DIR_ONE.unsigned_abs().pow(2);
+        if len2.abs_diff(unit) <= MAX_UNIT_ERROR_RAW {
             Ok(Self { raw })
         } else {
             Err(Error::OutOfRange(Field::Direction))
@@ -143,8 +150,7 @@ impl Line {
     /// The line through `origin` along `dir`.
     pub fn new(origin: Point, dir: Direction) -> Self {
         let d = dir.bits();
-        let a = d.iter().map(|&c| i128::from(c) * i128::from(c)).sum();
-        Self { origin: origin.bits(), dir: d, a }
+        Self { origin: origin.bits(), dir: d, a: i128::from(squared_length(d)) }
     }
 
     /// Raw Q16.16 origin.

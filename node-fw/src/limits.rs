@@ -42,7 +42,7 @@ pub const MIN_RADIUS_RAW: i32 = (ONE / 256) as i32;
 /// Largest radius, raw (64 cubes).
 pub const MAX_RADIUS_RAW: i32 = (64 * ONE) as i32;
 /// Largest accepted deviation of `d.d` from 1, raw in units of 2^-60 (that is, 2^-20).
-pub const MAX_UNIT_ERROR_RAW: i128 = 1 << 40;
+pub const MAX_UNIT_ERROR_RAW: u64 = 1 << 40;
 
 /// Smallest raw coordinate of an origin.
 pub const MIN_COORD_RAW: i64 = -MAX_OUTSIDE * ONE;

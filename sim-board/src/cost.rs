@@ -30,12 +30,12 @@ impl Default for CostModel {
     /// Cortex-M3 instructions of the node firmware, measured on the emulated
     /// mps2-an385 (`scripts/firmware.sh` runs the `kernels` binary under
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
-    /// test) 120.6; a sphere test over a mostly-missing list 224.0; a walk's
-    /// set-up (the received ray's line checked, the walk resumed) 780.9; a
-    /// shaded hit with one light and a mirror 7 774.2 (the surface and both
+    /// test) 112.7; a sphere test over a mostly-missing list 224.0; a walk's
+    /// set-up (the received ray's line checked, the walk resumed) 432.1; a
+    /// shaded hit with one light and a mirror 7 188.5 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for
     /// the children it spawns later); an initial
-    /// ray (pixel line, ray, entry cube) 3 241.8. Messages through a reliable
+    /// ray (pixel line, ray, entry cube) 2 916.9. Messages through a reliable
     /// channel: one end of a hop (the ray in its hand-packed wire form, the
     /// reply carrying the ray's ack, the reply's ack in a frame of its own)
     /// 3 464.6, and of a ray reply with its ack alone 1 248.8, which stands
@@ -46,11 +46,11 @@ impl Default for CostModel {
     /// in a frame of its own) 2 672.7.
     fn default() -> Self {
         Self {
-            cube_step: 121,
+            cube_step: 113,
             sphere_test: 224,
-            trace: 781,
-            shade: 7_774,
-            create: 3_242,
+            trace: 432,
+            shade: 7_189,
+            create: 2_917,
             ray_message: 2_216,
             granted_ray: 2_673,
             short_message: 1_249,
@@ -171,8 +171,8 @@ mod tests {
             granted_rays: 1,
         };
         let split = c.split(&w);
-        assert_eq!(split.compute, 7 * 121 + 3 * 224 + 7_774 + 3_242);
-        assert_eq!(split.setup, 2 * 781);
+        assert_eq!(split.compute, 7 * 113 + 3 * 224 + 7_189 + 2_917);
+        assert_eq!(split.setup, 2 * 432);
         assert_eq!(split.messaging, 2 * 2_216 + 2_673 + 6 * 1_249);
         assert_eq!(split.total(), c.charge(&w));
     }

@@ -123,3 +123,61 @@ fn resume_rejects_cells_off_the_line() {
     assert!(DigitalLine::resume(&line, [0, 0, 3]).is_err(), "z off the line with d_z = 0");
     assert!(DigitalLine::resume(&line, [-3, 0, 0]).is_err(), "cube behind the origin");
 }
+
+/// Whether the closed unit cube `cell` meets the ray `origin + t dir`,
+/// `t >= 0`, decided independently of the firmware: per axis the interval of
+/// `t` (as num / den with den > 0) over which the ray is in the cube's slab,
+/// intersected exactly by cross-multiplying in i128.
+fn cube_meets_ray(origin: [i32; 3], dir: [i32; 3], cell: [i32; 3]) -> bool {
+    const ONE: i128 = 1 << 16;
+    // Bounds as (num, den) fractions of t in raw Q16.16 / Q2.30 units; None = unbounded.
+    let (mut lo, mut hi): ((i128, i128), Option<(i128, i128)>) = ((0, 1), None);
+    for axis in 0..3 {
+        let (o, d, c) = (i128::from(origin[axis]), i128::from(dir[axis]), i128::from(cell[axis]));
+        let (lower, upper) = (c * ONE, c * ONE + ONE);
+        if d == 0 {
+            if o < lower || o > upper {
+                return false;
+            }
+            continue;
+        }
+        // t at which the coordinate reaches `lower` and `upper`, as (num, |d|).
+        let (a, b) = ((lower - o) * d.signum(), (upper - o) * d.signum());
+        let (enter, leave) = if d > 0 { (a, b) } else { (b, a) };
+        let den = d.abs();
+        if enter * lo.1 > lo.0 * den {
+            lo = (enter, den);
+        }
+        if hi.is_none_or(|h| leave * h.1 < h.0 * den) {
+            hi = Some((leave, den));
+        }
+    }
+    hi.is_none_or(|h| lo.0 * h.1 <= h.0 * lo.1)
+}
+
+proptest::proptest! {
+    /// A received ray is taken exactly when its cube lies on its line ahead
+    /// of its origin: every such cube is resumed, no other is.
+    #[test]
+    fn resume_accepts_exactly_the_cubes_on_the_ray(
+        origin in proptest::array::uniform3(-4.0f64..20.0),
+        dir in proptest::array::uniform3(-1.0f64..1.0),
+        zero_axis in 0usize..4,
+        offset in proptest::array::uniform3(-2i32..3),
+        along in 0.0f64..24.0,
+    ) {
+        let mut dir = dir;
+        if let Some(d) = dir.get_mut(zero_axis) {
+            *d = 0.0;
+        }
+        proptest::prop_assume!(dir.iter().map(|d| d * d).sum::<f64>() > 1e-6);
+        let line = quantise::line(origin, dir);
+        // A cube near the point `along` cubes down the ray, off it by `offset`.
+        let cell = std::array::from_fn(|a| {
+            let p = f64::from(line.origin()[a]) / 65536.0 + along * f64::from(line.dir()[a]) / f64::from(1 << 30);
+            p.floor() as i32 + offset[a]
+        });
+        let want = cube_meets_ray(line.origin(), line.dir(), cell);
+        proptest::prop_assert_eq!(DigitalLine::resume(&line, cell).is_ok(), want, "cell {:?}", cell);
+    }
+}
