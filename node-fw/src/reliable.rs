@@ -82,6 +82,15 @@ pub struct Channel<const W: usize> {
     control_due: Option<Message>,
     /// An ack moved the window since the last transmit.
     acked_now: bool,
+    /// Data frames taken since our last acknowledgement went out.
+    taken_unacked: usize,
+    /// Since when an acknowledgement has waited for a data frame to ride on
+    /// (the time of the transmit before the frame it answers arrived).
+    ack_held_since: Option<u64>,
+    /// The time of the last transmit: receiving takes no clock.
+    last_transmit: u64,
+    /// The pending acknowledgement answers a duplicate: it goes at once.
+    ack_urgent: bool,
     /// Since when the peer has owed an ack: the last ack that moved the
     /// window, or the first send into an empty window.
     owed_since: Option<u64>,
@@ -116,6 +125,10 @@ impl<const W: usize> Channel<W> {
             expected: 0,
             control_due: None,
             acked_now: false,
+            taken_unacked: 0,
+            ack_held_since: None,
+            last_transmit: 0,
+            ack_urgent: false,
             owed_since: None,
             incarnation: 0,
             synced: false,
@@ -219,13 +232,17 @@ impl<const W: usize> Channel<W> {
                 if deliver(msg) {
                     self.expected = self.expected.wrapping_add(1);
                     self.control_due = Some(Message::Ack(frame.seq));
+                    self.taken_unacked += 1;
+                    self.ack_held_since.get_or_insert(self.last_transmit);
                 } else {
                     self.stats.discarded += 1;
                 }
             }
             _ => {
                 self.stats.discarded += 1;
-                // A duplicate re-acks the last taken frame; a gap asks for the missing one.
+                // A duplicate re-acks the last taken frame; a gap asks for the
+                // missing one. Either way the peer is resending: answer now.
+                self.ack_urgent = true;
                 self.control_due = Some(if precedes(frame.seq, self.expected) {
                     Message::Ack(self.expected.wrapping_sub(1))
                 } else {
@@ -246,7 +263,7 @@ impl<const W: usize> Channel<W> {
         }
         self.peer = Some(incarnation);
         self.expected = 0;
-        self.control_due = None;
+        self.ack_sent();
     }
 
     /// The peer lost our stream with its old state: renumber what it has not
@@ -294,6 +311,7 @@ impl<const W: usize> Channel<W> {
         mut write: impl FnMut(&[u8]) -> bool,
     ) {
         let buf = buf.as_mut_slice();
+        self.last_transmit = now;
         if let Some(incarnation) = self.sync_ack_due
             && write_control(Message::SyncAck(incarnation), buf, &mut write)
         {
@@ -306,13 +324,14 @@ impl<const W: usize> Channel<W> {
             self.progress_at = now;
         }
         // An ack rides on the first data frame that goes out; only without
-        // one (or for a nak) does it take a frame of its own.
+        // one does it take a frame of its own, and then only once it answers
+        // half a window or has waited long enough (a nak goes at once).
         let data_due = self.synced && self.resend_from < self.unacked.len();
         if let Some(control) = self.control_due.clone()
-            && !(data_due && matches!(control, Message::Ack(_)))
+            && !(matches!(control, Message::Ack(_)) && (data_due || !self.ack_alone_due(now)))
             && write_control(control, buf, &mut write)
         {
-            self.control_due = None;
+            self.ack_sent();
         }
         if !self.synced {
             self.announce(now, buf, &mut write);
@@ -330,7 +349,7 @@ impl<const W: usize> Channel<W> {
                 break;
             }
             if frame.ack.is_some() {
-                self.control_due = None;
+                self.ack_sent();
             }
             if self.resend_from < self.written {
                 self.stats.retransmitted += 1;
@@ -338,6 +357,31 @@ impl<const W: usize> Channel<W> {
             self.resend_from += 1;
             self.written = self.written.max(self.resend_from);
         }
+    }
+
+    /// Whether an acknowledgement with no data frame to ride on should go in
+    /// a frame of its own at `now`.
+    ///
+    /// A peer passing a stream of rays on grants gets nothing back to carry
+    /// its acks, and a frame per ack cost each end of a hop about a third of
+    /// its instructions. Acks wait until they answer half a window (the peer
+    /// keeps the other half to send on, so a stream never stalls for them),
+    /// for a quarter of the resend time-out (so a short burst is answered
+    /// long before the peer would resend it), or until the peer resends.
+    fn ack_alone_due(&mut self, now: u64) -> bool {
+        if self.ack_urgent || self.taken_unacked >= (W / 2).max(1) {
+            return true;
+        }
+        let since = self.ack_held_since.unwrap_or(now);
+        now.saturating_sub(since) >= self.timeout / 4
+    }
+
+    /// An acknowledgement went out, alone or riding on a data frame.
+    fn ack_sent(&mut self) {
+        self.control_due = None;
+        self.taken_unacked = 0;
+        self.ack_held_since = None;
+        self.ack_urgent = false;
     }
 
     /// Notes when the window last moved and since when the peer owes an answer.

@@ -283,3 +283,48 @@ fn an_ack_rides_on_the_reply_and_takes_a_frame_only_without_one() {
     assert!(matches!(frames[0].msg, Message::Ack(_)) && frames[0].ack.is_none());
     assert_eq!(a.stats.retransmitted, 0);
 }
+
+#[test]
+fn a_one_way_stream_is_acknowledged_once_per_half_window() {
+    // A long resend time-out, so only the half-window rule can send acks.
+    let (mut a, mut b) = (Channel::<4>::new(1_000), Channel::<4>::new(1_000));
+    a.set_incarnation(1);
+    b.set_incarnation(2);
+    let (mut now, mut got_a, mut got_b) = (0, Vec::new(), Vec::new());
+    a.send(msg(0)).unwrap();
+    exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
+    // B's ack of that first frame waits out a quarter of the time-out.
+    now += 250;
+    let (back, _) = written(&mut b, now);
+    a.receive(&back, |_| true);
+    assert!(!a.busy() && !b.busy());
+
+    let mut acks = 0;
+    for k in 1..=12 {
+        a.send(msg(k)).unwrap();
+        let (frames, _) = written(&mut a, now);
+        b.receive(&frames, |m| {
+            got_b.push(m);
+            true
+        });
+        let (back, decoded) = written(&mut b, now);
+        acks += decoded.iter().filter(|f| matches!(f.msg, Message::Ack(_))).count();
+        a.receive(&back, |_| true);
+        now += 1;
+        assert!(a.can_send(), "the window never fills while acks wait");
+    }
+    assert_eq!(acks, 6, "12 frames, an ack for every 2");
+    assert_eq!(got_b.len(), 13);
+    assert_eq!(a.stats.retransmitted, 0);
+
+    // One frame alone is answered once it has waited a quarter of the
+    // time-out, long before the sender would resend it.
+    a.send(msg(13)).unwrap();
+    let (frames, _) = written(&mut a, now);
+    b.receive(&frames, |_| true);
+    assert!(written(&mut b, now + 200).1.is_empty(), "held");
+    let (back, decoded) = written(&mut b, now + 250);
+    assert!(matches!(decoded.as_slice(), [f] if f.msg == Message::Ack(13)), "{decoded:?}");
+    a.receive(&back, |_| true);
+    assert!(!a.busy());
+}

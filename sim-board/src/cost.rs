@@ -19,7 +19,7 @@ pub struct CostModel {
     /// rides on its reply.
     pub ray_message: u64,
     /// Handling one received or sent ray passed on a grant: no reply, so its
-    /// acknowledgement takes a frame of its own.
+    /// acknowledgement goes alone (one for every half window of rays).
     pub granted_ray: u64,
     /// Handling one received or sent message of any other kind: replies,
     /// space notices, retirements and control, all a few bytes to a ray's 60.
@@ -36,14 +36,14 @@ impl Default for CostModel {
     /// children, evaluated once; a hit waiting for pool room pays again for
     /// the children it spawns later); an initial
     /// ray (pixel line, ray, entry cube) 2 916.9. Messages through a reliable
-    /// channel: one end of a hop (the ray in its hand-packed wire form, the
-    /// reply carrying the ray's ack, the reply's ack in a frame of its own)
-    /// 3 464.6, and of a ray reply with its ack alone 1 248.8, which stands
-    /// for every short message; a ray end is charged the difference, 2 216
-    /// (the UART's bytes are the link model's). A sender that has more for
-    /// the neighbour sends the reply's ack on it, so real hops cost up to a
-    /// short frame less. One end of a hop on a grant (the ray, and its ack
-    /// in a frame of its own) 2 672.7.
+    /// channel, whose acknowledgements ride on data going back or, with none,
+    /// go alone once per half window (two frames on a board): one end of a
+    /// hop (the ray in its hand-packed wire form, the reply carrying the
+    /// ray's ack, the reply's ack alone every other reply) 3 116.5, and of a
+    /// ray reply with its ack alone every other time 1 021.0, which stands
+    /// for every short message; a ray end is charged the difference, 2 096
+    /// (the UART's bytes are the link model's). One end of a hop on a grant
+    /// (the ray, and an ack alone for every other ray) 2 448.4.
     fn default() -> Self {
         Self {
             cube_step: 113,
@@ -51,9 +51,9 @@ impl Default for CostModel {
             trace: 432,
             shade: 7_189,
             create: 2_917,
-            ray_message: 2_216,
-            granted_ray: 2_673,
-            short_message: 1_249,
+            ray_message: 2_096,
+            granted_ray: 2_448,
+            short_message: 1_021,
         }
     }
 }
@@ -173,7 +173,7 @@ mod tests {
         let split = c.split(&w);
         assert_eq!(split.compute, 7 * 113 + 3 * 224 + 7_189 + 2_917);
         assert_eq!(split.setup, 2 * 432);
-        assert_eq!(split.messaging, 2 * 2_216 + 2_673 + 6 * 1_249);
+        assert_eq!(split.messaging, 2 * 2_096 + 2_448 + 6 * 1_021);
         assert_eq!(split.total(), c.charge(&w));
     }
 }

@@ -16,6 +16,7 @@ use link_proto::{
     CameraMsg, LightMsg, MAX_FRAME_LEN, MaterialMsg, Message, RayMsg, RayReply, SceneHeader, SphereMsg,
 };
 use node_board::board::mps2_an385::{self as board, Timer, Uart};
+use node_board::capacity::WINDOW;
 use node_fw::camera::{primary_line, primary_ray};
 use node_fw::reliable::Channel;
 use node_fw::shading::{Scene, Surface};
@@ -215,8 +216,8 @@ fn shadings(timer: &mut Timer, grid: &Grid, spheres: &[Sphere]) -> (u64, u64) {
 }
 
 /// The two ends of a link, with the incarnations they announce.
-fn channel_pair() -> (Channel<4>, Channel<4>) {
-    let (mut a, mut b) = (Channel::<4>::new(1 << 40), Channel::<4>::new(1 << 40));
+fn channel_pair() -> (Channel<WINDOW>, Channel<WINDOW>) {
+    let (mut a, mut b) = (Channel::<WINDOW>::new(1 << 40), Channel::<WINDOW>::new(1 << 40));
     a.set_incarnation(1);
     b.set_incarnation(2);
     (a, b)
@@ -228,8 +229,8 @@ type Wire = (heapless::Vec<u8, 1024>, [u8; MAX_FRAME_LEN]);
 
 /// Moves what `from` has due at `round` over `wire` into `to`.
 fn pass(
-    from: &mut Channel<4>,
-    to: &mut Channel<4>,
+    from: &mut Channel<WINDOW>,
+    to: &mut Channel<WINDOW>,
     round: u64,
     wire: &mut Wire,
     deliver: impl FnMut(Message) -> bool,
@@ -241,8 +242,9 @@ fn pass(
 
 /// Passing each of `rays` over a hop as nodes do: the ray through a reliable
 /// channel pair, the receiver's reply carrying its ack, and the sender's ack
-/// of the reply in a frame of its own, as when it has nothing else for that
-/// neighbour (per hop and end, bytes on the UART not included).
+/// of the replies in a frame of its own as the channel sends it when it has
+/// nothing else for that neighbour, once per half window (per hop and end,
+/// bytes on the UART not included).
 fn hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     let (mut a, mut b) = channel_pair();
     let mut wire = (heapless::Vec::new(), [0; MAX_FRAME_LEN]);
@@ -272,9 +274,9 @@ fn hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
 }
 
 /// Passing each of `rays` over a hop on a grant: the ray through a reliable
-/// channel pair and the receiver's ack in a frame of its own, as when nothing
-/// goes back to carry it; no reply (per hop and end, bytes on the UART not
-/// included).
+/// channel pair and the receiver's acks in frames of their own as the
+/// channel sends them when nothing goes back to carry them, once per half
+/// window; no reply (per hop and end, bytes on the UART not included).
 fn granted_hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     let (mut a, mut b) = channel_pair();
     let mut wire = (heapless::Vec::new(), [0; MAX_FRAME_LEN]);
@@ -291,8 +293,8 @@ fn granted_hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
 }
 
 /// Passing a reply to each of `rays` through a reliable channel pair, both
-/// ends and the ack, each in a frame of its own (per message and end, bytes
-/// on the UART not included).
+/// ends and the acks, in frames of their own once per half window (per
+/// message and end, bytes on the UART not included).
 fn replies(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     let (mut a, mut b) = channel_pair();
     let mut wire = (heapless::Vec::new(), [0; MAX_FRAME_LEN]);
