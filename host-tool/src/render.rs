@@ -21,8 +21,9 @@ use crate::partition::{Partition, tiles, view_axis};
 use crate::scene::Scene;
 
 /// Credit of one initial ray: children split it, so it must survive
-/// `(lights + 2)^max_depth` divisions (at most 10^8 < 2^32).
-pub const PIXEL_CREDIT: u64 = 1 << 32;
+/// `(lights + 2)^max_depth` divisions (at most 10^8 < 2^32). The wire knows
+/// it too: a ray with exactly this credit carries none.
+pub use link_proto::ray_wire::PIXEL_CREDIT;
 
 /// Who creates the initial rays: a sub-image per node, chosen by the host.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

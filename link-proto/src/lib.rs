@@ -23,4 +23,4 @@ pub use message::*;
 
 /// Version of the wire protocol; nodes and host exchange it in [`Hello`].
 /// Bump it whenever a message changes shape (postcard carries no field names).
-pub const PROTOCOL_VERSION: u16 = 8;
+pub const PROTOCOL_VERSION: u16 = 9;

@@ -1,39 +1,73 @@
 //! A ray's wire form: fixed little-endian fields, packed and unpacked by
 //! hand, carried in a frame as one postcard byte string.
 //!
-//! Rays are most of the traffic between nodes, and postcard's field-by-field
-//! walk (a varint per integer, a tag per option and enum) was about half of
-//! what a ray's frame cost to encode and decode on the Cortex-M3 (see
-//! `scripts/firmware.sh`'s `ray_frame_*` kernels). Here a ray is a flags
-//! byte, then its fields at fixed offsets; the optional ones follow only when
-//! present, and two common cases take fewer bytes: weights that fit 16 bits
-//! and credit under 2^40 (a primary ray's 2^32 and every share of it). Any
-//! [`RayMsg`] round-trips; bytes that are not one are refused, never read as
+//! Rays are most of the traffic between nodes, and every byte of a ray is
+//! paid three times: on the wire, and by the CRC and COBS at both ends. So a
+//! ray carries only what its exact continuation needs, in the shortest of a
+//! few fixed forms that two flag bytes choose:
+//! - a primary ray's origin is the eye, which every node knows: a node
+//!   sends [`ORIGIN_AT_EYE`] in its place and it takes no bytes;
+//! - weights at full strength (every primary ray) take none, weights under
+//!   2^16 two bytes each, else four;
+//! - credit of exactly 2^32 (a primary ray's) takes none, under 2^40 five
+//!   bytes, else eight;
+//! - cells under 256 (every grid cell) one byte each, else two;
+//! - a class under 256 one byte, else two; a zero tag (every ray passed on a
+//!   grant) none; depth under 7 rides in the flags.
+//!
+//! Any [`RayMsg`] round-trips, and each has exactly one encoding: bytes that
+//! are not the encoder's choice for some ray are refused, never read as
 //! something else.
 //!
-//! Layout, after the flags and the depth byte: origin (3 x i32), direction
-//! (3 x i32), cell (3 x u16), pixel (u32), weights (3 x u16 or 3 x u32),
-//! credit (5 or 8 bytes), class (u16), tag (u16), then `ignore` (u16),
-//! `t_max` (i32) and `best` (t as i32, then the sphere) when present.
+//! Layout: flags, forms, [depth], [origin (3 x i32)], direction (3 x i32),
+//! cell, pixel (u32), [weights], [credit], class, [tag], then `ignore`
+//! (u16), `t_max` (i32) and `best` (t as i32, then the sphere) when present.
 
 use serde::de::{Error as _, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::message::{HitMsg, MaterialMsg, RayKind, RayMsg, SphereMsg};
 
+/// The origin a node writes for a primary ray that starts at the eye: the
+/// wire leaves it out, and the receiver puts its own eye back. Far outside
+/// every accepted coordinate range, so a ray that keeps it is refused.
+pub const ORIGIN_AT_EYE: [i32; 3] = [i32::MIN; 3];
+
+// The first flag byte: what is present.
 const HAS_IGNORE: u8 = 1 << 0;
 const HAS_BEST: u8 = 1 << 1;
 const HAS_T_MAX: u8 = 1 << 2;
-const SHORT_WEIGHTS: u8 = 1 << 3;
-const SHORT_CREDIT: u8 = 1 << 4;
-const KIND_SHIFT: u32 = 5;
+const KIND_SHIFT: u32 = 3;
 const KIND_MASK: u8 = 0b11 << KIND_SHIFT;
-const KNOWN: u8 = HAS_IGNORE | HAS_BEST | HAS_T_MAX | SHORT_WEIGHTS | SHORT_CREDIT | KIND_MASK;
+const HAS_TAG: u8 = 1 << 5;
+const WIDE_CLASS: u8 = 1 << 6;
+const AT_EYE: u8 = 1 << 7;
+
+// The second: how long the variable fields are, and the depth.
+const WEIGHTS_MASK: u8 = 0b11;
+const WEIGHTS_FULL: u8 = 0;
+const WEIGHTS_SHORT: u8 = 1;
+const WEIGHTS_LONG: u8 = 2;
+const CREDIT_SHIFT: u32 = 2;
+const CREDIT_MASK: u8 = 0b11 << CREDIT_SHIFT;
+const CREDIT_PRIMARY: u8 = 0;
+const CREDIT_SHORT: u8 = 1 << CREDIT_SHIFT;
+const CREDIT_LONG: u8 = 2 << CREDIT_SHIFT;
+const WIDE_CELL: u8 = 1 << 4;
+const DEPTH_SHIFT: u32 = 5;
+/// A depth this large or larger follows in a byte of its own.
+const DEPTH_ESCAPE: u8 = 7;
+
+/// Full strength, Q1.15.
+const FULL_WEIGHT: u32 = 32768;
+/// A primary ray's credit: the share of its pixel that the host accounts
+/// for (every ray a primary spawns splits its credit).
+pub const PIXEL_CREDIT: u64 = 1 << 32;
 
 /// A sphere's bytes: id, centre, radius, colour, four coefficients and the exponent.
 const SPHERE_LEN: usize = 2 + 12 + 4 + 6 + 8 + 1;
-/// The longest ray: every option present, long weights and credit.
-pub const RAY_MAX_LEN: usize = 2 + 12 + 12 + 6 + 4 + 12 + 8 + 2 + 2 + 2 + 4 + 4 + SPHERE_LEN;
+/// The longest ray: every option present, every field in its long form.
+pub const RAY_MAX_LEN: usize = 3 + 12 + 12 + 6 + 4 + 12 + 8 + 2 + 2 + 2 + 4 + 4 + SPHERE_LEN;
 
 /// Writes fields one after another into a buffer.
 struct Writer<'a> {
@@ -96,43 +130,83 @@ fn kind_of(flags: u8) -> Option<RayKind> {
     }
 }
 
-/// Packs `ray` into `out`; the length written, or `None` if `out` is shorter
-/// than the ray needs ([`RAY_MAX_LEN`] always suffices).
-pub fn encode_ray(ray: &RayMsg, out: &mut [u8]) -> Option<usize> {
-    let short_weights = ray.weight.iter().all(|&w| w <= u32::from(u16::MAX));
-    let short_credit = ray.credit < 1 << 40;
+/// The flag bytes the encoder chooses for `ray`.
+fn flags_of(ray: &RayMsg) -> [u8; 2] {
     let mut flags = kind_bits(ray.kind);
     for (set, bit) in [
         (ray.ignore.is_some(), HAS_IGNORE),
         (ray.best.is_some(), HAS_BEST),
         (ray.t_max.is_some(), HAS_T_MAX),
-        (short_weights, SHORT_WEIGHTS),
-        (short_credit, SHORT_CREDIT),
+        (ray.tag != 0, HAS_TAG),
+        (ray.class > 0xff, WIDE_CLASS),
+        (ray.origin == ORIGIN_AT_EYE, AT_EYE),
     ] {
         if set {
             flags |= bit;
         }
     }
+    let weights = if ray.weight == [FULL_WEIGHT; 3] {
+        WEIGHTS_FULL
+    } else if ray.weight.iter().all(|&w| w <= 0xffff) {
+        WEIGHTS_SHORT
+    } else {
+        WEIGHTS_LONG
+    };
+    let credit = match ray.credit {
+        PIXEL_CREDIT => CREDIT_PRIMARY,
+        c if c < 1 << 40 => CREDIT_SHORT,
+        _ => CREDIT_LONG,
+    };
+    let cell = if ray.cell.iter().any(|&c| c > 0xff) { WIDE_CELL } else { 0 };
+    [flags, weights | credit | cell | (ray.depth.min(DEPTH_ESCAPE) << DEPTH_SHIFT)]
+}
+
+/// Packs `ray` into `out`; the length written, or `None` if `out` is shorter
+/// than the ray needs ([`RAY_MAX_LEN`] always suffices).
+pub fn encode_ray(ray: &RayMsg, out: &mut [u8]) -> Option<usize> {
+    let [flags, forms] = flags_of(ray);
     let mut w = Writer { out, at: 0 };
-    w.put(&[flags, ray.depth])?;
-    for v in ray.origin.iter().chain(&ray.dir) {
-        w.put(&v.to_le_bytes())?;
+    w.put(&[flags, forms])?;
+    if ray.depth >= DEPTH_ESCAPE {
+        w.put(&[ray.depth])?;
     }
-    for c in ray.cell {
-        w.put(&c.to_le_bytes())?;
-    }
-    w.put(&ray.pixel.to_le_bytes())?;
-    for v in ray.weight {
-        if short_weights {
-            w.put(&(v as u16).to_le_bytes())?;
-        } else {
+    if flags & AT_EYE == 0 {
+        for v in ray.origin {
             w.put(&v.to_le_bytes())?;
         }
     }
+    for v in ray.dir {
+        w.put(&v.to_le_bytes())?;
+    }
+    for c in ray.cell {
+        if forms & WIDE_CELL != 0 {
+            w.put(&c.to_le_bytes())?;
+        } else {
+            w.put(&[c as u8])?;
+        }
+    }
+    w.put(&ray.pixel.to_le_bytes())?;
+    for v in ray.weight {
+        match forms & WEIGHTS_MASK {
+            WEIGHTS_SHORT => w.put(&(v as u16).to_le_bytes())?,
+            WEIGHTS_LONG => w.put(&v.to_le_bytes())?,
+            _ => {}
+        }
+    }
     let credit = ray.credit.to_le_bytes();
-    w.put(credit.get(..if short_credit { 5 } else { 8 })?)?;
-    w.put(&ray.class.to_le_bytes())?;
-    w.put(&ray.tag.to_le_bytes())?;
+    match forms & CREDIT_MASK {
+        CREDIT_SHORT => w.put(credit.get(..5)?)?,
+        CREDIT_LONG => w.put(&credit)?,
+        _ => {}
+    }
+    if flags & WIDE_CLASS != 0 {
+        w.put(&ray.class.to_le_bytes())?;
+    } else {
+        w.put(&[ray.class as u8])?;
+    }
+    if ray.tag != 0 {
+        w.put(&ray.tag.to_le_bytes())?;
+    }
     if let Some(ignore) = ray.ignore {
         w.put(&ignore.to_le_bytes())?;
     }
@@ -163,31 +237,37 @@ fn put_sphere(w: &mut Writer<'_>, s: &SphereMsg) -> Option<()> {
 pub fn decode_ray(bytes: &[u8]) -> Option<RayMsg> {
     let mut r = Reader { bytes };
     let flags = r.u8()?;
-    if flags & !KNOWN != 0 {
-        return None;
-    }
+    let forms = r.u8()?;
     let kind = kind_of(flags)?;
-    let depth = r.u8()?;
-    let origin = r.i32x3()?;
+    let depth = match forms >> DEPTH_SHIFT {
+        DEPTH_ESCAPE => r.u8()?,
+        d => d,
+    };
+    let origin = if flags & AT_EYE != 0 { ORIGIN_AT_EYE } else { r.i32x3()? };
     let dir = r.i32x3()?;
-    let cell = [r.u16()?, r.u16()?, r.u16()?];
+    let mut cell = [0u16; 3];
+    for c in &mut cell {
+        *c = if forms & WIDE_CELL != 0 { r.u16()? } else { u16::from(r.u8()?) };
+    }
     let pixel = r.u32()?;
-    let mut weight = [0u32; 3];
-    for v in &mut weight {
-        *v = if flags & SHORT_WEIGHTS != 0 { u32::from(r.u16()?) } else { r.u32()? };
-    }
-    let mut credit = [0u8; 8];
-    let credit_len = if flags & SHORT_CREDIT != 0 { 5 } else { 8 };
-    credit.get_mut(..credit_len)?.copy_from_slice(r.bytes.get(..credit_len)?);
-    r.bytes = r.bytes.get(credit_len..)?;
-    let credit = u64::from_le_bytes(credit);
-    // A short form must be the one the encoder chose: one ray, one encoding.
-    let long_weights_fit = flags & SHORT_WEIGHTS == 0 && weight.iter().all(|&w| w <= u32::from(u16::MAX));
-    if long_weights_fit || (credit_len == 8 && credit < 1 << 40) {
-        return None;
-    }
-    let class = r.u16()?;
-    let tag = r.u16()?;
+    let weight = match forms & WEIGHTS_MASK {
+        WEIGHTS_FULL => [FULL_WEIGHT; 3],
+        WEIGHTS_SHORT => [u32::from(r.u16()?), u32::from(r.u16()?), u32::from(r.u16()?)],
+        WEIGHTS_LONG => [r.u32()?, r.u32()?, r.u32()?],
+        _ => return None,
+    };
+    let credit = match forms & CREDIT_MASK {
+        CREDIT_PRIMARY => PIXEL_CREDIT,
+        CREDIT_SHORT => {
+            let mut b = [0u8; 8];
+            b.get_mut(..5)?.copy_from_slice(&r.take::<5>()?);
+            u64::from_le_bytes(b)
+        }
+        CREDIT_LONG => u64::from_le_bytes(r.take()?),
+        _ => return None,
+    };
+    let class = if flags & WIDE_CLASS != 0 { r.u16()? } else { u16::from(r.u8()?) };
+    let tag = if flags & HAS_TAG != 0 { r.u16()? } else { 0 };
     let ignore = if flags & HAS_IGNORE != 0 { Some(r.u16()?) } else { None };
     let t_max = if flags & HAS_T_MAX != 0 { Some(r.i32()?) } else { None };
     let best =
@@ -195,7 +275,10 @@ pub fn decode_ray(bytes: &[u8]) -> Option<RayMsg> {
     if !r.bytes.is_empty() {
         return None;
     }
-    Some(RayMsg { origin, dir, cell, pixel, weight, credit, kind, depth, ignore, best, t_max, class, tag })
+    let ray =
+        RayMsg { origin, dir, cell, pixel, weight, credit, kind, depth, ignore, best, t_max, class, tag };
+    // One ray, one encoding: the forms must be the ones the encoder chose.
+    (flags_of(&ray) == [flags, forms]).then_some(ray)
 }
 
 fn take_sphere(r: &mut Reader<'_>) -> Option<SphereMsg> {
@@ -251,7 +334,7 @@ mod tests {
             cell: [1, 2, 65535],
             pixel: 4_000_000,
             weight: [32768, 0, 65535],
-            credit: 1 << 32,
+            credit: 1 << 33,
             kind: RayKind::Shadow,
             depth: 2,
             ignore: Some(9),
@@ -262,45 +345,86 @@ mod tests {
         }
     }
 
+    fn primary() -> RayMsg {
+        RayMsg {
+            origin: ORIGIN_AT_EYE,
+            cell: [3, 200, 255],
+            weight: [FULL_WEIGHT; 3],
+            credit: PIXEL_CREDIT,
+            kind: RayKind::Primary,
+            depth: 0,
+            ignore: None,
+            t_max: None,
+            tag: 0,
+            ..ray()
+        }
+    }
+
     #[test]
-    fn a_primary_share_of_credit_takes_the_short_forms() {
+    fn a_primary_ray_on_a_grant_takes_22_bytes() {
         let mut buf = [0u8; RAY_MAX_LEN];
-        let r = RayMsg { ignore: None, t_max: None, ..ray() };
-        // Flags, depth, 24 of line, 6 of cell, 4 of pixel, 6 of weights, 5 of credit, 4 of class and tag.
-        assert_eq!(encode_ray(&r, &mut buf), Some(2 + 24 + 6 + 4 + 6 + 5 + 4));
-        assert_eq!(decode_ray(buf.get(..51).unwrap()), Some(r));
+        // Two flag bytes, 12 of direction, 3 of cell, 4 of pixel, 1 of class.
+        assert_eq!(encode_ray(&primary(), &mut buf), Some(2 + 12 + 3 + 4 + 1));
+        assert_eq!(decode_ray(&buf[..22]), Some(primary()));
     }
 
     #[test]
     fn a_second_encoding_of_the_same_ray_is_refused() {
-        // The ray above with its weights written long although they fit short.
         let mut buf = [0u8; RAY_MAX_LEN];
-        let r = RayMsg { ignore: None, t_max: None, ..ray() };
+        let r = RayMsg { cell: [1, 2, 3], ..ray() };
         let n = encode_ray(&r, &mut buf).unwrap();
-        let mut long = buf[..2 + 24 + 6 + 4].to_vec();
-        long[0] &= !SHORT_WEIGHTS;
-        for w in r.weight {
-            long.extend_from_slice(&w.to_le_bytes());
+        // The same ray with its cells written wide although they fit a byte.
+        let mut wide = buf[..2 + 24].to_vec();
+        wide[1] |= WIDE_CELL;
+        for c in r.cell {
+            wide.extend_from_slice(&c.to_le_bytes());
         }
-        long.extend_from_slice(&buf[2 + 24 + 6 + 4 + 6..n]);
+        wide.extend_from_slice(&buf[2 + 24 + 3..n]);
+        assert_eq!(decode_ray(&wide), None);
+        // A full-strength primary ray with its weights written out.
+        let p = primary();
+        let n = encode_ray(&p, &mut buf).unwrap();
+        let mut long = buf[..n].to_vec();
+        long[1] |= WEIGHTS_SHORT;
+        let at = 2 + 12 + 3 + 4;
+        for _ in 0..3 {
+            long.splice(at..at, 32768u16.to_le_bytes());
+        }
         assert_eq!(decode_ray(&long), None);
     }
 
     proptest::proptest! {
-        /// Weights and credit on both sides of the short forms' limits.
+        /// Every field on both sides of its forms' limits.
         #[test]
-        fn rays_round_trip_across_the_short_forms(
-            weight in proptest::array::uniform3(0u32..70_000),
-            credit in (1u64 << 40) - 1000..(1u64 << 40) + 1000,
-            low_credit in proptest::bool::ANY,
+        fn rays_round_trip_across_the_forms(
+            weight in proptest::array::uniform3(prop_oneof_weights()),
+            credit in proptest::prop_oneof![
+                proptest::strategy::Just(PIXEL_CREDIT),
+                (1u64 << 40) - 1000..(1u64 << 40) + 1000,
+                0u64..1 << 33,
+                proptest::num::u64::ANY,
+            ],
+            cell in proptest::array::uniform3(proptest::prop_oneof![0u16..300, proptest::num::u16::ANY]),
+            class in proptest::prop_oneof![0u16..300, proptest::num::u16::ANY],
+            tag in proptest::prop_oneof![proptest::strategy::Just(0u16), proptest::num::u16::ANY],
+            depth in proptest::prop_oneof![0u8..10, proptest::num::u8::ANY],
+            at_eye in proptest::bool::ANY,
             t_max in proptest::option::of(proptest::num::i32::ANY),
         ) {
-            let credit = if low_credit { credit >> 9 } else { credit };
-            let r = RayMsg { weight, credit, t_max, ..ray() };
+            let origin = if at_eye { ORIGIN_AT_EYE } else { ray().origin };
+            let r = RayMsg { weight, credit, cell, class, tag, depth, origin, t_max, ..ray() };
             let mut buf = [0u8; RAY_MAX_LEN];
             let n = encode_ray(&r, &mut buf).unwrap();
             proptest::prop_assert_eq!(decode_ray(&buf[..n]), Some(r));
         }
+    }
+
+    fn prop_oneof_weights() -> impl proptest::strategy::Strategy<Value = u32> {
+        proptest::prop_oneof![
+            proptest::strategy::Just(FULL_WEIGHT),
+            65000u32..70_000,
+            proptest::num::u32::ANY
+        ]
     }
 
     #[test]
@@ -313,5 +437,8 @@ mod tests {
         let mut bad = buf;
         bad[0] |= 3 << KIND_SHIFT;
         assert_eq!(decode_ray(&bad[..n]), None, "kind 3 is no kind");
+        let mut bad = buf;
+        bad[1] |= 3;
+        assert_eq!(decode_ray(&bad[..n]), None, "weight form 3 is no form");
     }
 }

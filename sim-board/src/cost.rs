@@ -30,30 +30,31 @@ impl Default for CostModel {
     /// Cortex-M3 instructions of the node firmware, measured on the emulated
     /// mps2-an385 (`scripts/firmware.sh` runs the `kernels` binary under
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
-    /// test) 112.7; a sphere test over a mostly-missing list 224.0; a walk's
-    /// set-up (the received ray's line checked, the walk resumed) 432.1; a
-    /// shaded hit with one light and a mirror 7 188.5 (the surface and both
+    /// test) 121.9; a sphere test over a mostly-missing list 224.0; a walk's
+    /// set-up (the received ray's line checked, the walk resumed) 436.2; a
+    /// shaded hit with one light and a mirror 7 191.4 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for
     /// the children it spawns later); an initial
-    /// ray (pixel line, ray, entry cube) 2 916.9. Messages through a reliable
+    /// ray (pixel line, ray, entry cube) 2 919.0. Messages through a reliable
     /// channel, whose acknowledgements ride on data going back or, with none,
     /// go alone once per half window (two frames on a board): one end of a
-    /// hop (the ray in its hand-packed wire form, the reply carrying the
-    /// ray's ack, the reply's ack alone every other reply) 3 116.5, and of a
-    /// ray reply with its ack alone every other time 1 021.0, which stands
-    /// for every short message; a ray end is charged the difference, 2 096
-    /// (the UART's bytes are the link model's). One end of a hop on a grant
-    /// (the ray, and an ack alone for every other ray) 2 448.4.
+    /// hop (the ray in its compact wire form, the reply carrying the ray's
+    /// ack, the reply's ack alone every other reply) 2 806.2, and of a ray
+    /// reply with its ack alone every other time 1 025.2, which stands for
+    /// every short message; a ray end is charged the difference, 1 781 (the
+    /// UART's bytes are the link model's). One end of a hop on a grant (the
+    /// ray, and an ack alone for every other ray) 2 127.9. The rays are half
+    /// primaries from the eye, half reflections (43.5 bytes a frame).
     fn default() -> Self {
         Self {
-            cube_step: 113,
+            cube_step: 122,
             sphere_test: 224,
-            trace: 432,
-            shade: 7_189,
-            create: 2_917,
-            ray_message: 2_096,
-            granted_ray: 2_448,
-            short_message: 1_021,
+            trace: 436,
+            shade: 7_191,
+            create: 2_919,
+            ray_message: 1_781,
+            granted_ray: 2_128,
+            short_message: 1_025,
         }
     }
 }
@@ -171,9 +172,9 @@ mod tests {
             granted_rays: 1,
         };
         let split = c.split(&w);
-        assert_eq!(split.compute, 7 * 113 + 3 * 224 + 7_189 + 2_917);
-        assert_eq!(split.setup, 2 * 432);
-        assert_eq!(split.messaging, 2 * 2_096 + 2_448 + 6 * 1_021);
+        assert_eq!(split.compute, 7 * 122 + 3 * 224 + 7_191 + 2_919);
+        assert_eq!(split.setup, 2 * 436);
+        assert_eq!(split.messaging, 2 * 1_781 + 2_128 + 6 * 1_025);
         assert_eq!(split.total(), c.charge(&w));
     }
 }

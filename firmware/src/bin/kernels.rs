@@ -12,8 +12,9 @@ use core::fmt::Write as _;
 
 use cortex_m_rt::entry;
 use embedded_io::Write;
+use link_proto::ray_wire::{ORIGIN_AT_EYE, PIXEL_CREDIT};
 use link_proto::{
-    CameraMsg, LightMsg, MAX_FRAME_LEN, MaterialMsg, Message, RayMsg, RayReply, SceneHeader, SphereMsg,
+    CameraMsg, LightMsg, MAX_FRAME_LEN, MaterialMsg, Message, RayKind, RayMsg, RayReply, SceneHeader, SphereMsg,
 };
 use node_board::board::mps2_an385::{self as board, Timer, Uart};
 use node_board::capacity::WINDOW;
@@ -213,6 +214,29 @@ fn shadings(timer: &mut Timer, grid: &Grid, spheres: &[Sphere]) -> (u64, u64) {
         ticks += timer.ticks() - start;
     }
     (ticks, shaded)
+}
+
+/// Rays as nodes pass them: every other one a primary ray from the eye
+/// (which the wire leaves out, as a node does), the rest reflections from
+/// a point on the primary's line with part of its weight and credit.
+fn wire_rays(primaries: &[RayMsg]) -> heapless::Vec<RayMsg, 64> {
+    let mut out = heapless::Vec::new();
+    for (k, ray) in primaries.iter().enumerate() {
+        let ray = if k % 2 == 0 {
+            RayMsg { origin: ORIGIN_AT_EYE, credit: PIXEL_CREDIT, ..*ray }
+        } else {
+            RayMsg {
+                origin: ray.origin.map(|c| c + (150 << 16) + 12_345),
+                kind: RayKind::Reflected,
+                weight: [20_000, 15_000, 9_000],
+                credit: PIXEL_CREDIT / 3,
+                depth: 1,
+                ..*ray
+            }
+        };
+        let _ = out.push(ray);
+    }
+    out
 }
 
 /// The two ends of a link, with the incarnations they announce.
@@ -438,6 +462,7 @@ fn main() -> ! {
     let _ = writeln!(out, "kernel trace {} {n}", per_unit_x100(ticks, n));
     let (ticks, n) = shadings(&mut timer, &grid, &spheres);
     let _ = writeln!(out, "kernel shade {} {n}", per_unit_x100(ticks, n));
+    let rays = wire_rays(&rays);
     let (ticks, n) = hops(&mut timer, &rays);
     let _ = writeln!(out, "kernel hop {} {n}", per_unit_x100(ticks, n));
     let (ticks, n) = replies(&mut timer, &rays);

@@ -2,7 +2,8 @@
 //! taking the replies to what was sent, and retrying refused rays when the
 //! neighbour has room again. Back-pressure, never a dropped ray.
 
-use link_proto::{ErrorCode, RayMsg, RayReply};
+use link_proto::ray_wire::ORIGIN_AT_EYE;
+use link_proto::{ErrorCode, RayKind, RayMsg, RayReply};
 
 use crate::link::Port;
 use crate::pool::Stage;
@@ -13,6 +14,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// A neighbour passes a ray on: admitted to the pool or refused, and
     /// answered either way.
     pub(super) fn admit_ray(&mut self, port: Port, ray: RayMsg) {
+        let ray = self.off_the_wire(ray);
         if self.phase != Phase::Rendering {
             // A neighbour may start before the host's RenderStart reaches us (the
             // links are independent): refuse; our Space follows once we start.
@@ -32,6 +34,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// A neighbour passes a ray on a grant we gave: it takes the slot we set
     /// aside for it, and nothing is answered.
     pub(super) fn admit_granted(&mut self, port: Port, ray: RayMsg) {
+        let ray = self.off_the_wire(ray);
         let Some(given) = self.grants_given.get_mut(port.index()).filter(|g| **g > 0) else {
             // More rays than grants: a protocol violation.
             return self.fail(ErrorCode::Unexpected, port as u32, 10);
@@ -43,6 +46,28 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         if self.pool.admit_reserved(ray, Stage::Trace).is_err() {
             self.fail(ErrorCode::Unexpected, port as u32, 11);
         }
+    }
+
+    /// A ray as it leaves for a neighbour: a primary ray still on its way
+    /// from the eye sends [`ORIGIN_AT_EYE`] for its origin, which the wire
+    /// leaves out (every node knows the eye).
+    pub(super) fn for_the_wire(&self, mut ray: RayMsg) -> RayMsg {
+        if ray.kind == RayKind::Primary && self.render.as_ref().is_some_and(|r| r.camera.eye == ray.origin) {
+            ray.origin = ORIGIN_AT_EYE;
+        }
+        ray
+    }
+
+    /// A ray as it arrives: the eye back in place of [`ORIGIN_AT_EYE`]. Before
+    /// a frame starts there is no eye, and the ray keeps an origin that its
+    /// walk's set-up refuses.
+    fn off_the_wire(&self, mut ray: RayMsg) -> RayMsg {
+        if ray.origin == ORIGIN_AT_EYE
+            && let Some(r) = &self.render
+        {
+            ray.origin = r.camera.eye;
+        }
+        ray
     }
 
     /// A neighbour grants us `n` more rays: rays held back after its

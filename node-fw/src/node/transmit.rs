@@ -151,7 +151,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                     n -= 1;
                 }
                 Stage::Outbound(port) if granted => {
-                    let Some(mut ray) = self.pool.get(i).map(|s| s.ray) else { continue };
+                    let Some(mut ray) = self.pool.get(i).map(|s| self.for_the_wire(s.ray)) else { continue };
                     ray.class = ray.class.saturating_add(1);
                     ray.tag = 0;
                     if !send(links, port, Message::GrantedRay(ray)) {
@@ -170,7 +170,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                     n -= 1;
                 }
                 Stage::Outbound(port) => {
-                    let Some(mut ray) = self.pool.get(i).map(|s| s.ray) else { continue };
+                    let Some(mut ray) = self.pool.get(i).map(|s| self.for_the_wire(s.ray)) else { continue };
                     ray.class = ray.class.saturating_add(1);
                     ray.tag = i;
                     if !send(links, port, Message::Ray(ray)) {
