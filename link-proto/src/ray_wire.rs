@@ -130,6 +130,12 @@ fn kind_of(flags: u8) -> Option<RayKind> {
     }
 }
 
+/// Whether `origin` is [`ORIGIN_AT_EYE`], compared a component at a time:
+/// an array's `==` is a `memcmp` call on a Cortex-M3, and this runs twice a ray.
+pub fn at_eye(origin: [i32; 3]) -> bool {
+    origin.iter().all(|&c| c == i32::MIN)
+}
+
 /// The flag bytes the encoder chooses for `ray`.
 fn flags_of(ray: &RayMsg) -> [u8; 2] {
     let mut flags = kind_bits(ray.kind);
@@ -139,13 +145,13 @@ fn flags_of(ray: &RayMsg) -> [u8; 2] {
         (ray.t_max.is_some(), HAS_T_MAX),
         (ray.tag != 0, HAS_TAG),
         (ray.class > 0xff, WIDE_CLASS),
-        (ray.origin == ORIGIN_AT_EYE, AT_EYE),
+        (at_eye(ray.origin), AT_EYE),
     ] {
         if set {
             flags |= bit;
         }
     }
-    let weights = if ray.weight == [FULL_WEIGHT; 3] {
+    let weights = if ray.weight.iter().all(|&w| w == FULL_WEIGHT) {
         WEIGHTS_FULL
     } else if ray.weight.iter().all(|&w| w <= 0xffff) {
         WEIGHTS_SHORT

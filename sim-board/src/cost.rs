@@ -39,11 +39,11 @@ impl Default for CostModel {
     /// channel, whose acknowledgements ride on data going back or, with none,
     /// go alone once per half window (two frames on a board): one end of a
     /// hop (the ray in its compact wire form, the reply carrying the ray's
-    /// ack, the reply's ack alone every other reply) 2 806.2, and of a ray
+    /// ack, the reply's ack alone every other reply) 2 686.7, and of a ray
     /// reply with its ack alone every other time 1 025.2, which stands for
-    /// every short message; a ray end is charged the difference, 1 781 (the
+    /// every short message; a ray end is charged the difference, 1 662 (the
     /// UART's bytes are the link model's). One end of a hop on a grant (the
-    /// ray, and an ack alone for every other ray) 2 127.9. The rays are half
+    /// ray, and an ack alone for every other ray) 2 008.4. The rays are half
     /// primaries from the eye, half reflections (43.5 bytes a frame).
     fn default() -> Self {
         Self {
@@ -52,8 +52,8 @@ impl Default for CostModel {
             trace: 436,
             shade: 7_191,
             create: 2_919,
-            ray_message: 1_781,
-            granted_ray: 2_128,
+            ray_message: 1_662,
+            granted_ray: 2_008,
             short_message: 1_025,
         }
     }
@@ -174,7 +174,7 @@ mod tests {
         let split = c.split(&w);
         assert_eq!(split.compute, 7 * 122 + 3 * 224 + 7_191 + 2_919);
         assert_eq!(split.setup, 2 * 436);
-        assert_eq!(split.messaging, 2 * 1_781 + 2_128 + 6 * 1_025);
+        assert_eq!(split.messaging, 2 * 1_662 + 2_008 + 6 * 1_025);
         assert_eq!(split.total(), c.charge(&w));
     }
 }

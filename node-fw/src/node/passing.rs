@@ -2,7 +2,7 @@
 //! taking the replies to what was sent, and retrying refused rays when the
 //! neighbour has room again. Back-pressure, never a dropped ray.
 
-use link_proto::ray_wire::ORIGIN_AT_EYE;
+use link_proto::ray_wire::{self, ORIGIN_AT_EYE};
 use link_proto::{ErrorCode, RayKind, RayMsg, RayReply};
 
 use crate::link::Port;
@@ -52,7 +52,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// from the eye sends [`ORIGIN_AT_EYE`] for its origin, which the wire
     /// leaves out (every node knows the eye).
     pub(super) fn for_the_wire(&self, mut ray: RayMsg) -> RayMsg {
-        if ray.kind == RayKind::Primary && self.render.as_ref().is_some_and(|r| r.camera.eye == ray.origin) {
+        if ray.kind == RayKind::Primary
+            && self.render.as_ref().is_some_and(|r| r.camera.eye.iter().zip(&ray.origin).all(|(a, b)| a == b))
+        {
             ray.origin = ORIGIN_AT_EYE;
         }
         ray
@@ -62,7 +64,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// a frame starts there is no eye, and the ray keeps an origin that its
     /// walk's set-up refuses.
     fn off_the_wire(&self, mut ray: RayMsg) -> RayMsg {
-        if ray.origin == ORIGIN_AT_EYE
+        if ray_wire::at_eye(ray.origin)
             && let Some(r) = &self.render
         {
             ray.origin = r.camera.eye;
