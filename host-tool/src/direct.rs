@@ -216,7 +216,7 @@ fn trace(
     });
     if let Some(c) = costs {
         // The node where the ray ends retires it to the host.
-        c.map.add_message(last, c.model.short_message);
+        c.map.add_message(last, c.model.retire_message);
         if let Outcome::Hit(_) = outcome {
             c.map.add_compute(last, c.model.shade);
         }

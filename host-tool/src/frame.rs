@@ -113,7 +113,7 @@ impl FrameBuffer {
         }
         self.credit_back += u128::from(r.credit);
         self.rays_created += u64::from(r.spawned);
-        self.rays_terminated += 1;
+        self.rays_terminated += u64::from(r.rays);
         self.makespan = self.makespan.max(at);
     }
 
@@ -133,7 +133,11 @@ pub fn to_srgb8(sum: u64) -> u8 {
 impl HostEndpoint for FrameBuffer {
     fn receive(&mut self, node: u16, at: u64, msg: Message) {
         match msg {
-            Message::Retire(r) => self.retire(at, r),
+            Message::Retire(batch) => {
+                for &r in batch.records() {
+                    self.retire(at, r);
+                }
+            }
             Message::Load(l) if l.interval == node_fw::node::FINAL_INTERVAL => {
                 if let Some(slot) = self.loads.get_mut(usize::from(l.node)) {
                     *slot = Some(l);

@@ -182,9 +182,8 @@ impl FrameDecoder {
 
 /// Decodes one COBS payload (delimiters stripped) in place.
 fn decode_payload(encoded: &mut [u8]) -> Result<Frame, DecodeError> {
-    let n = cobs::decode_in_place(encoded).ok_or(DecodeError::Cobs)?;
-    let payload = encoded.get(..n).ok_or(DecodeError::Cobs)?;
-    let body_len = n.checked_sub(CRC_LEN).ok_or(DecodeError::Short)?;
+    let payload = cobs::decode_slice(encoded).ok_or(DecodeError::Cobs)?;
+    let body_len = payload.len().checked_sub(CRC_LEN).ok_or(DecodeError::Short)?;
     let (body, crc) = payload.split_at(body_len);
     let mut crc_bytes = [0u8; CRC_LEN];
     crc_bytes.copy_from_slice(crc);

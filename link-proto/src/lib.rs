@@ -17,6 +17,7 @@ pub mod cobs;
 pub mod frame;
 pub mod message;
 pub mod ray_wire;
+pub mod retirements;
 
 pub use frame::{DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_PAYLOAD_LEN, encode_frame};
 pub use message::*;

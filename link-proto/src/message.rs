@@ -11,6 +11,8 @@
 use postcard::experimental::max_size::MaxSize;
 use serde::{Deserialize, Serialize};
 
+pub use crate::retirements::{Retire, Retirements};
+
 /// One frame on a link: a per-link sequence number, the message it carries,
 /// and perhaps an acknowledgement of the opposite direction's frames.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
@@ -55,8 +57,9 @@ pub enum Message {
     RenderStart(RenderStart),
     /// A ray with its exact traversal state, passed between nodes.
     Ray(RayMsg),
-    /// Node to host: a ray ended; its pixel contribution and returned credit.
-    Retire(Retire),
+    /// Node to host: rays that ended, their pixel contributions and returned
+    /// credit (several records when the host link is behind).
+    Retire(Retirements),
     /// Node to host and to driving-axis neighbours: running and waiting time of an interval.
     Load(LoadReport),
     /// Giver to receiver: the slab up to `boundary` is coming; its spheres follow.
@@ -392,20 +395,6 @@ pub struct RayMsg {
     pub class: u16,
     /// Sender's handle for the [`RayReply`].
     pub tag: u16,
-}
-
-/// A ray ended. Contributions are integers, so their sum is independent of order.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
-pub struct Retire {
-    /// Pixel index `y * width + x`.
-    pub pixel: u32,
-    /// Contribution to the pixel per channel, Q1.15.
-    pub rgb: [u32; 3],
-    /// Credit returned to the host. The frame is complete when the host has back
-    /// the credit of every initial ray.
-    pub credit: u64,
-    /// Rays spawned by the ending ray (shadow and reflection rays).
-    pub spawned: u8,
 }
 
 /// Running and waiting time of one node over one interval, in virtual ticks.

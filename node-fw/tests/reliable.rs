@@ -1,7 +1,7 @@
 //! The reliable channel over a wire that corrupts, drops and duplicates bytes:
 //! every message arrives once, in order.
 
-use link_proto::{Message, Retire};
+use link_proto::{Message, Retire, Retirements};
 use node_fw::reliable::Channel;
 
 /// xorshift64*: a seeded generator, no dependency.
@@ -50,12 +50,13 @@ impl Wire {
 }
 
 fn msg(i: u32) -> Message {
-    Message::Retire(Retire {
+    Message::Retire(Retirements::new(Retire {
         pixel: i,
         rgb: [i, i ^ 7, 3],
         credit: u64::from(i) << 20,
         spawned: (i % 5) as u8,
-    })
+        rays: 1,
+    }))
 }
 
 fn run(seed: u64, corrupt: f64, drop: f64, dup: f64, count: u32) -> (u64, node_fw::reliable::ChannelStats) {

@@ -22,39 +22,47 @@ pub struct CostModel {
     /// acknowledgement goes alone (one for every half window of rays).
     pub granted_ray: u64,
     /// Handling one received or sent message of any other kind: replies,
-    /// space notices, retirements and control, all a few bytes to a ray's 60.
+    /// space notices and control, a few bytes each.
     pub short_message: u64,
+    /// Sending a retirement message with one record.
+    pub retire_message: u64,
+    /// Each further record in a retirement message.
+    pub retire_record: u64,
 }
 
 impl Default for CostModel {
     /// Cortex-M3 instructions of the node firmware, measured on the emulated
     /// mps2-an385 (`scripts/firmware.sh` runs the `kernels` binary under
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
-    /// test) 121.9; a sphere test over a mostly-missing list 224.0; a walk's
-    /// set-up (the received ray's line checked, the walk resumed) 436.2; a
-    /// shaded hit with one light and a mirror 7 191.4 (the surface and both
+    /// test) 113.6; a sphere test over a mostly-missing list 224.0; a walk's
+    /// set-up (the received ray's line checked, the walk resumed) 440.1; a
+    /// shaded hit with one light and a mirror 7 186.2 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for
     /// the children it spawns later); an initial
-    /// ray (pixel line, ray, entry cube) 2 919.0. Messages through a reliable
+    /// ray (pixel line, ray, entry cube) 2 924.1. Messages through a reliable
     /// channel, whose acknowledgements ride on data going back or, with none,
     /// go alone once per half window (two frames on a board): one end of a
     /// hop (the ray in its compact wire form, the reply carrying the ray's
-    /// ack, the reply's ack alone every other reply) 2 686.7, and of a ray
-    /// reply with its ack alone every other time 1 025.2, which stands for
-    /// every short message; a ray end is charged the difference, 1 662 (the
+    /// ack, the reply's ack alone every other reply) 2 529.4, and of a ray
+    /// reply with its ack alone every other time 984.4, which stands for
+    /// every short message; a ray end is charged the difference, 1 545 (the
     /// UART's bytes are the link model's). One end of a hop on a grant (the
-    /// ray, and an ack alone for every other ray) 2 008.4. The rays are half
-    /// primaries from the eye, half reflections (43.5 bytes a frame).
+    /// ray, and an ack alone for every other ray) 1 871.7. The rays are half
+    /// primaries from the eye, half reflections (43.5 bytes a frame). A
+    /// node's end of a retirement (the host's acks taken) 1 507.3 with one
+    /// record, 2 452.4 with three: 473 a further record.
     fn default() -> Self {
         Self {
-            cube_step: 122,
+            cube_step: 114,
             sphere_test: 224,
-            trace: 436,
-            shade: 7_191,
-            create: 2_919,
-            ray_message: 1_662,
-            granted_ray: 2_008,
-            short_message: 1_025,
+            trace: 440,
+            shade: 7_186,
+            create: 2_924,
+            ray_message: 1_545,
+            granted_ray: 1_872,
+            short_message: 984,
+            retire_message: 1_507,
+            retire_record: 473,
         }
     }
 }
@@ -67,7 +75,7 @@ impl CostModel {
 
     /// Cycles for one poll's work, by what they were spent on.
     pub fn split(&self, w: &Work) -> Busy {
-        let short = w.received + w.sent - w.rays_received - w.rays_sent;
+        let short = w.received + w.sent - w.rays_received - w.rays_sent - w.retire_messages;
         let answered = w.rays_received + w.rays_sent - w.granted_rays;
         Busy {
             compute: u64::from(w.cube_steps) * self.cube_step
@@ -77,7 +85,9 @@ impl CostModel {
             setup: u64::from(w.traces) * self.trace,
             messaging: u64::from(answered) * self.ray_message
                 + u64::from(w.granted_rays) * self.granted_ray
-                + u64::from(short) * self.short_message,
+                + u64::from(short) * self.short_message
+                + u64::from(w.retire_messages) * self.retire_message
+                + u64::from(w.extra_records) * self.retire_record,
             polls: u64::from(w.is_busy()),
         }
     }
@@ -170,11 +180,13 @@ mod tests {
             rays_received: 2,
             rays_sent: 1,
             granted_rays: 1,
+            retire_messages: 2,
+            extra_records: 3,
         };
         let split = c.split(&w);
-        assert_eq!(split.compute, 7 * 122 + 3 * 224 + 7_191 + 2_919);
-        assert_eq!(split.setup, 2 * 436);
-        assert_eq!(split.messaging, 2 * 1_662 + 2_008 + 6 * 1_025);
+        assert_eq!(split.compute, 7 * 114 + 3 * 224 + 7_186 + 2_924);
+        assert_eq!(split.setup, 2 * 440);
+        assert_eq!(split.messaging, 2 * 1_545 + 1_872 + 4 * 984 + 2 * 1_507 + 3 * 473);
         assert_eq!(split.total(), c.charge(&w));
     }
 }

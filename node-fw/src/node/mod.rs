@@ -87,6 +87,11 @@ pub struct Work {
     pub rays_sent: u32,
     /// Of the rays sent and received, those passed on a grant (no reply).
     pub granted_rays: u32,
+    /// Of the messages sent, retirements to the host.
+    pub retire_messages: u32,
+    /// Records those carried beyond each message's first (retirements travel
+    /// several to a message when the host link is behind).
+    pub extra_records: u32,
 }
 
 impl Work {
@@ -404,5 +409,5 @@ fn kind(msg: &Message) -> u32 {
 }
 
 fn retire(ray: &RayMsg, rgb: [u32; 3], credit: u64, spawned: u8) -> Retire {
-    Retire { pixel: ray.pixel, rgb, credit, spawned }
+    Retire { pixel: ray.pixel, rgb, credit, spawned, rays: 1 }
 }

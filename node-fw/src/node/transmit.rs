@@ -1,7 +1,7 @@
 //! Sending: replies, notices, rays and retirements, control messages and
 //! slabs, as far as the links take them this poll.
 
-use link_proto::{ErrorCode, Hello, LoadReport, Message, PROTOCOL_VERSION};
+use link_proto::{ErrorCode, Hello, LoadReport, Message, PROTOCOL_VERSION, Retire, Retirements};
 
 use crate::link::{Links, Port};
 use crate::pool::Stage;
@@ -26,6 +26,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         let mut send = |links: &mut L, port: Port, msg: Message| {
             let ray = msg.is_ray();
             let granted = matches!(msg, Message::GrantedRay(_));
+            let records = match &msg {
+                Message::Retire(b) => Some(b.records().len() as u32),
+                _ => None,
+            };
             let ok = links.try_send(port, msg).is_ok();
             // Not `work.sent += u32::from(ok)`: rustc 1.95 at opt-level >= 2
             // drops the increment when the same bool is branched on after
@@ -38,6 +42,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 }
                 if granted {
                     work.granted_rays += 1;
+                }
+                if let Some(records) = records {
+                    work.retire_messages += 1;
+                    work.extra_records += records.saturating_sub(1);
                 }
             }
             ok
@@ -100,6 +108,23 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
     }
 
+    /// Sends `batch` to the host and frees its rays' slots; whether it went.
+    fn send_retirements<L: Links>(
+        &mut self,
+        links: &mut L,
+        send: &mut impl FnMut(&mut L, Port, Message) -> bool,
+        batch: &RetireBatch,
+    ) -> bool {
+        if !send(links, Port::Host, Message::Retire(batch.records)) {
+            return false;
+        }
+        for &i in &batch.slots {
+            self.pool.remove(i);
+        }
+        self.slot_freed();
+        true
+    }
+
     /// Sends rays bound for neighbours and retirements for the host, oldest first.
     fn send_rays<L: Links>(&mut self, links: &mut L, send: &mut impl FnMut(&mut L, Port, Message) -> bool) {
         if !self.pool.any_leaving() {
@@ -121,6 +146,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         // Oldest first. A ray that goes drops out of the list and the next
         // takes its place, so `n` moves on only past a ray that stays.
         let mut n = 0;
+        // Retirements gathered for the host, sent when full and at the end
+        // of the pass: whatever is ready goes, nothing waits for company.
+        let mut batch: Option<RetireBatch> = None;
         while let Some(i) = self.pool.leaving_at(n) {
             n += 1;
             // Whether the port can take it, before the ray is copied out.
@@ -140,15 +168,24 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             let Some(stage) = self.pool.get(i).map(|s| s.stage()) else { continue };
             match stage {
                 Stage::Retire(r) => {
-                    if !send(links, Port::Host, Message::Retire(r)) {
-                        if close(port_full, &mut open) {
-                            break;
-                        }
+                    // Joins the records on their way to the host; a full batch
+                    // goes first, and this ray starts the next.
+                    if let Some(b) = batch.as_mut()
+                        && b.add(i, r)
+                    {
                         continue;
                     }
-                    self.pool.remove(i);
-                    self.slot_freed();
-                    n -= 1;
+                    if let Some(full_batch) = batch.take() {
+                        if !self.send_retirements(links, send, &full_batch) {
+                            batch = Some(full_batch);
+                            if close(port_full, &mut open) {
+                                break;
+                            }
+                            continue;
+                        }
+                        n -= full_batch.slots.len();
+                    }
+                    batch = Some(RetireBatch::new(i, r));
                 }
                 Stage::Outbound(port) if granted => {
                     let Some(mut ray) = self.pool.get(i).map(|s| self.for_the_wire(s.ray)) else { continue };
@@ -188,5 +225,34 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 _ => {}
             }
         }
+        if let Some(b) = batch
+            && !full.get(Port::Host.index()).is_some_and(|&f| f)
+        {
+            self.send_retirements(links, send, &b);
+        }
+    }
+}
+
+/// Retirements on their way to the host, and the pool slots of their rays.
+struct RetireBatch {
+    records: Retirements,
+    /// Slots freed once the records are sent.
+    slots: heapless::Vec<u16, RETIRE_BATCH_RAYS>,
+}
+
+/// Rays one batch of retirements may stand for (a pixel's rays merge, so
+/// more than its records).
+const RETIRE_BATCH_RAYS: usize = 16;
+
+impl RetireBatch {
+    fn new(slot: u16, r: Retire) -> Self {
+        let mut slots = heapless::Vec::new();
+        let _ = slots.push(slot);
+        Self { records: Retirements::new(r), slots }
+    }
+
+    /// Adds the ray in `slot` that ended with `r`; false when there is no room.
+    fn add(&mut self, slot: u16, r: Retire) -> bool {
+        !self.slots.is_full() && self.records.push(r).is_ok() && self.slots.push(slot).is_ok()
     }
 }
