@@ -81,7 +81,7 @@ pub fn add_initial_rays(
     let camera = PixelBasis::new(&scene.camera(), width, height).msg();
     for cell in crate::entry::entry_cells(&camera, &grid, [width, height]).into_iter().flatten() {
         if creation {
-            map.add_compute(cell, cost.create);
+            map.add_compute(cell, cost.create + cost.pass);
         } else {
             map.add_message(cell, hop_side(cost));
         }
@@ -97,11 +97,12 @@ pub fn broadcast_cost(scene: &Scene, cost: &sim_board::CostModel) -> u64 {
 
 /// What each side of a hop pays: the ray on a grant, a share of the `Grant`
 /// messages (one per half the grant target of rays, both ends), and half the
-/// receiver's walk set-up (a ray entering a node is set up again). Rays go
-/// on grants unless a node's pool has no slot to set aside.
+/// receiver's walk set-up and of the loop's pass around it (a ray entering a
+/// node is set up again, in a poll of its own). Rays go on grants unless a
+/// node's pool has no slot to set aside.
 fn hop_side(cost: &sim_board::CostModel) -> u64 {
     let grants = cost.short_message / u64::from(node_fw::node::GRANT_TARGET / 2);
-    cost.granted_ray + grants + cost.trace / 2
+    cost.granted_ray + grants + (cost.trace + cost.pass) / 2
 }
 
 /// Renders `scene` with the camera's direction basis rounded to `bits` fraction
@@ -203,7 +204,7 @@ fn trace(
     };
     let (mut best, mut stats) = (None, node_fw::TraceStats::default());
     if let Some(c) = costs.as_deref_mut() {
-        c.map.add_compute(walk.cell(), c.model.trace);
+        c.map.add_compute(walk.cell(), c.model.trace + c.model.pass);
     }
     let mut last = walk.cell();
     let outcome = region.trace_observed(&line, &mut walk, &mut best, &query, &mut stats, |cell, tests| {

@@ -142,8 +142,9 @@ struct SceneArgs {
 #[derive(Args, Clone)]
 struct LinkArgs {
     /// Links of the in-memory board: f413 (NUCLEO-F413ZH boards: 100 MHz,
-    /// neighbour USARTs at 3 Mbaud, host at 921 600 baud, a byte interrupt)
-    /// or ideal (25 cycles a byte, no CPU per byte) [default: f413].
+    /// neighbour USARTs at 3 Mbaud, host at 921 600 baud, a byte interrupt),
+    /// ideal (25 cycles a byte, no CPU per byte) or emulated (the QEMU
+    /// boards: polled UARTs, the loop's pass charged) [default: f413].
     #[arg(long, value_name = "PRESET", value_parser = host_tool::links::preset_named)]
     link: Option<sim_board::LinkPreset>,
     /// Core clock of the nodes, MHz (overrides the preset's).
@@ -193,6 +194,7 @@ impl LinkArgs {
         let (link, host) = choice.specs()?;
         opts.sim.link = link;
         opts.sim.host_link = host;
+        opts.sim.cost.pass = choice.preset.loop_pass();
         opts.link_preset = choice.preset;
         Ok(())
     }

@@ -15,7 +15,7 @@ use crate::scene::Scene;
 
 /// Busy cycles by kind, and waiting.
 fn busy_json(b: &Busy, waiting: u64) -> serde_json::Value {
-    json!({"compute": b.compute, "setup": b.setup, "messaging": b.messaging, "waiting": waiting, "polls": b.polls})
+    json!({"compute": b.compute, "setup": b.setup, "messaging": b.messaging, "pass": b.pass, "waiting": waiting, "polls": b.polls})
 }
 
 /// Per neighbour port and the host port: bytes sent and received, and the
@@ -64,12 +64,14 @@ pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> St
                 cube_steps: 0,
                 refused: 0,
                 extent: 0,
+                busy_polls: 0,
             });
             let b = r.partition.bounds(id);
             json!({
                 "id": id, "coord": r.partition.coord(id), "lo": b.lo, "hi": b.hi,
                 "running": l.running, "waiting": l.waiting, "rays": l.rays,
                 "sphere_tests": l.sphere_tests, "cube_steps": l.cube_steps, "refused": l.refused,
+                "busy_polls": l.busy_polls,
                 "bytes_sent": r.bytes[id].iter().sum::<u64>(),
                 "busy": r.busy.get(id).copied().flatten().map(|b| busy_json(&b, l.waiting)),
                 "ports": modelled.then(|| ports_json(opts, r, id)),
@@ -123,16 +125,17 @@ pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> St
 
 /// One row per node: its place, time, work and bytes sent.
 pub fn loads_csv(r: &RenderResult) -> String {
-    let mut s =
-        String::from("node,x,y,z,running,waiting,load,rays,sphere_tests,cube_steps,refused,bytes_sent\n");
+    let mut s = String::from(
+        "node,x,y,z,running,waiting,load,rays,sphere_tests,cube_steps,refused,busy_polls,bytes_sent\n",
+    );
     for (id, l) in r.frame.loads.iter().enumerate() {
         let c = r.partition.coord(id);
-        let (run, wait, rays, tests, steps, refused) = l.map_or((0, 0, 0, 0, 0, 0), |l| {
-            (l.running, l.waiting, l.rays, l.sphere_tests, l.cube_steps, l.refused)
+        let (run, wait, rays, tests, steps, refused, polls) = l.map_or((0, 0, 0, 0, 0, 0, 0), |l| {
+            (l.running, l.waiting, l.rays, l.sphere_tests, l.cube_steps, l.refused, l.busy_polls)
         });
         let load = load(run, wait);
         s += &format!(
-            "{id},{},{},{},{run},{wait},{load:.4},{rays},{tests},{steps},{refused},{}\n",
+            "{id},{},{},{},{run},{wait},{load:.4},{rays},{tests},{steps},{refused},{polls},{}\n",
             c[0],
             c[1],
             c[2],

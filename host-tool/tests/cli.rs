@@ -318,7 +318,7 @@ fn link_settings_are_checked() {
     let out = host_tool(scratch("preset").path(), &["render", "--size", "8x8", "--link", "fast"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).starts_with(
-        "error: invalid value 'fast' for '--link <PRESET>': unknown link preset 'fast' (one of f413, ideal)"
+        "error: invalid value 'fast' for '--link <PRESET>': unknown link preset 'fast' (one of f413, ideal, emulated)"
     ));
     let qemu = ["render", "--size", "8x8", "--backend", "qemu", "--link", "ideal"];
     fails("qemu-link", &qemu, None, 17, "model the in-memory board's links");

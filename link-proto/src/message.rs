@@ -418,6 +418,9 @@ pub struct LoadReport {
     pub refused: u32,
     /// The node's extent along the driving axis, in cubes (for proportional slides).
     pub extent: u16,
+    /// Polls in the interval that did work (each is charged as running
+    /// until the next poll: its work and the rest of the loop's pass).
+    pub busy_polls: u32,
 }
 
 /// Proposal to move a shared driving-axis boundary.

@@ -159,6 +159,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 cube_steps: b.2,
                 refused: b.0 ^ b.1,
                 extent: b.2 as u16,
+                busy_polls: b.1 ^ b.2,
             }
         )),
         (any::<u32>(), any::<u16>())

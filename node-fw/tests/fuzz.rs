@@ -157,7 +157,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
         2 => (any::<u16>(), any::<bool>()).prop_map(|(tag, accepted)| Message::RayReply(RayReply { tag, accepted })),
         1 => Just(Message::Space),
         1 => (any::<u32>(), any::<u64>(), any::<u64>(), any::<u16>()).prop_map(|(interval, running, waiting, extent)| {
-            Message::Load(LoadReport { node: 0, interval, running, waiting, rays: 0, sphere_tests: 0, cube_steps: 0, refused: 0, extent })
+            Message::Load(LoadReport { node: 0, interval, running, waiting, rays: 0, sphere_tests: 0, cube_steps: 0, refused: 0, extent, busy_polls: 0 })
         }),
         1 => (any::<u32>(), any::<u16>()).prop_map(|(interval, boundary)| Message::SlideOffer(SlideOffer { interval, boundary })),
         1 => (any::<u32>(), any::<u16>()).prop_map(|(interval, boundary)| Message::SlideRequest(SlideOffer { interval, boundary })),

@@ -71,6 +71,7 @@ fn load(interval: u32, running: u64, waiting: u64, extent: u16) -> Message {
         cube_steps: 0,
         refused: 0,
         extent,
+        busy_polls: 0,
     })
 }
 

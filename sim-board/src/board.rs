@@ -58,7 +58,7 @@ impl SimConfig {
     pub fn with_links(array: [u16; 3], preset: LinkPreset) -> Self {
         Self {
             array,
-            cost: CostModel::default(),
+            cost: CostModel { pass: preset.loop_pass(), ..CostModel::default() },
             link: preset.neighbour(),
             host_link: preset.host(),
             faults: None,

@@ -28,6 +28,13 @@ pub struct CostModel {
     pub retire_message: u64,
     /// Each further record in a retirement message.
     pub retire_record: u64,
+    /// Each poll that did work: the rest of the board's pass of its loop
+    /// around it (every UART polled and its bytes moved a register at a
+    /// time, every channel offered its frames, the pool's and the links'
+    /// bookkeeping), which no kernel above measures. A property of how the
+    /// board moves bytes, so its link preset sets it
+    /// ([`crate::LinkPreset::loop_pass`]); none by default.
+    pub pass: u64,
 }
 
 impl Default for CostModel {
@@ -63,6 +70,7 @@ impl Default for CostModel {
             short_message: 984,
             retire_message: 1_507,
             retire_record: 473,
+            pass: 0,
         }
     }
 }
@@ -88,6 +96,7 @@ impl CostModel {
                 + u64::from(short) * self.short_message
                 + u64::from(w.retire_messages) * self.retire_message
                 + u64::from(w.extra_records) * self.retire_record,
+            pass: if w.is_busy() { self.pass } else { 0 },
             polls: u64::from(w.is_busy()),
         }
     }
@@ -105,6 +114,9 @@ pub struct Busy {
     /// Handling messages (framing, checks, the reliable channel) and moving
     /// their bytes between the UARTs and memory.
     pub messaging: u64,
+    /// The board's loop around polls that did work: its passes over the
+    /// UARTs, channels and pool.
+    pub pass: u64,
     /// Polls that did work (a count, not cycles).
     pub polls: u64,
 }
@@ -112,7 +124,7 @@ pub struct Busy {
 impl Busy {
     /// All busy cycles.
     pub fn total(&self) -> u64 {
-        self.compute + self.setup + self.messaging
+        self.compute + self.setup + self.messaging + self.pass
     }
 }
 
@@ -130,6 +142,7 @@ impl std::ops::AddAssign for Busy {
         self.compute += other.compute;
         self.setup += other.setup;
         self.messaging += other.messaging;
+        self.pass += other.pass;
         self.polls += other.polls;
     }
 }

@@ -73,6 +73,39 @@ fn qemu_array_matches_the_in_memory_board() {
     }
 }
 
+/// The in-memory board with the emulated boards' links charges each node
+/// about what the emulated board spends (instructions on the emulated
+/// Cortex-M3, cycles on the in-memory board: the same unit under `-icount
+/// shift=0`). Measured: the busiest node here 4.88e6-5.31e6 instructions over
+/// three QEMU runs (passes depend on when bytes arrive), charged 5.63e6, +6%
+/// to +15%; on the frame the loop's pass was fitted to, -10%. One cost per
+/// pass cannot do better (busy passes cost 8 000-13 000 instructions beyond
+/// the kernels, by node), so this holds 20%, not the 15% aimed at; without
+/// the pass the board charged 71% too little.
+#[test]
+fn the_in_memory_board_predicts_the_busiest_emulated_node() {
+    let _one = one_array();
+    let firmware = firmware();
+    let s = scene();
+    let mut opts = options(None);
+    opts.sim = sim_board::SimConfig::with_links([2, 2, 2], sim_board::LinkPreset::Emulated);
+    let busiest = |r: &host_tool::render::RenderResult| {
+        r.frame.loads.iter().map(|l| l.expect("every node reported its load").running).max().unwrap_or(0)
+    };
+    let memory = busiest(&render_sim(&s, &opts).expect("in-memory render"));
+    let qemu = render(&s, &opts, &Backend::Qemu { firmware }, Duration::from_secs(30)).expect("qemu render");
+    let emulated = busiest(&qemu);
+    let gap = memory.abs_diff(emulated) as f64 / emulated as f64;
+    eprintln!(
+        "busiest node: emulated {emulated}, in-memory {memory} ({:+.1}%)",
+        100.0 * (memory as f64 / emulated as f64 - 1.0)
+    );
+    assert!(
+        gap < 0.20,
+        "busiest node: emulated {emulated} instructions, the in-memory board charges {memory}"
+    );
+}
+
 /// One host session on running boards: connect, check, render.
 fn session(ptys: &[String], s: &Scene, opts: &RenderOptions) -> host_tool::render::RenderResult {
     let names = (0..ptys.len()).map(|i| format!("node {i}")).collect();

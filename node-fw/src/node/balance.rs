@@ -50,6 +50,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             sphere_tests: self.totals.sphere_tests,
             cube_steps: self.totals.cube_steps,
             refused: self.totals.refused,
+            busy_polls: self.totals.busy_polls,
             extent: {
                 let (lo, hi) = self.extent_after_giving();
                 hi.saturating_sub(lo)

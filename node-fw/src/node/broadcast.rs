@@ -44,7 +44,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.error_due = None;
         self.load_due = None;
         self.meter = LoadMeter::new();
-        self.totals = Totals { rays: 0, sphere_tests: 0, cube_steps: 0, refused: 0 };
+        self.totals = Totals::default();
         self.balance = None;
         self.intervals = IntervalClock::idle();
         self.slide = SlideState::new();

@@ -112,6 +112,8 @@ pub struct Totals {
     pub cube_steps: u32,
     /// Rays refused for want of a pool slot.
     pub refused: u32,
+    /// Polls that did work.
+    pub busy_polls: u32,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -201,7 +203,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             error_due: None,
             load_due: None,
             meter: LoadMeter::new(),
-            totals: Totals { rays: 0, sphere_tests: 0, cube_steps: 0, refused: 0 },
+            totals: Totals { rays: 0, sphere_tests: 0, cube_steps: 0, refused: 0, busy_polls: 0 },
             balance: None,
             intervals: IntervalClock::idle(),
             slide: SlideState::new(),
@@ -281,6 +283,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             self.compute(&mut work);
         }
         self.transmit(links, &mut work);
+        if work.is_busy() {
+            self.totals.busy_polls += 1;
+        }
         self.meter.set_busy(work.is_busy());
         work
     }

@@ -101,6 +101,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 cube_steps: self.totals.cube_steps,
                 refused: self.totals.refused,
                 extent: 0,
+                busy_polls: self.totals.busy_polls,
             };
             if send(links, Port::Host, Message::Load(report)) {
                 self.load_due = None;
