@@ -345,7 +345,15 @@ impl Board {
 
     /// Runs every node with something to do before `end`; returns whether any worked.
     fn round(&mut self, end: u64) -> bool {
-        // Snapshot what each sender sees of its peer's inbox.
+        // Snapshot what each sender sees of its peer's inbox, and of its
+        // host link the messages still on their way (a board's window and
+        // transmit buffer hold only so many).
+        let mut to_host = vec![0usize; self.slots.len()];
+        for &(_, node, _) in self.to_host.keys() {
+            if let Some(n) = to_host.get_mut(usize::from(node)) {
+                *n += 1;
+            }
+        }
         for i in 0..self.slots.len() {
             for p in 0..6 {
                 if let Some(j) = self.neighbours[i][p] {
@@ -354,7 +362,7 @@ impl Board {
                     self.slots[i].ports[p].occupancy = occ;
                 }
             }
-            self.slots[i].ports[Port::Host.index()].occupancy = 0;
+            self.slots[i].ports[Port::Host.index()].occupancy = to_host.get(i).copied().unwrap_or(0);
         }
         let config = self.config;
         let active = |s: &Slot| s.next_event().is_some_and(|t| t < end);

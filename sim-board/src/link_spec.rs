@@ -177,8 +177,10 @@ impl LinkPreset {
     pub const fn host(self) -> LinkSpec {
         let n = self.neighbour();
         match self {
-            LinkPreset::F413 => LinkSpec { baud: 921_600, capacity: 64, ..n },
-            LinkPreset::Ideal | LinkPreset::Emulated => LinkSpec { capacity: 64, ..n },
+            // A board's host channel has a window of four frames.
+            LinkPreset::F413 => LinkSpec { baud: 921_600, capacity: 4, ..n },
+            LinkPreset::Emulated => LinkSpec { capacity: 4, ..n },
+            LinkPreset::Ideal => LinkSpec { capacity: 64, ..n },
         }
     }
 }

@@ -402,12 +402,18 @@ fn link_presets_change_time_not_the_image() {
     assert_eq!((ideal_busy.compute, ideal_busy.setup), (irq_busy.compute, irq_busy.setup));
     // Which rays go on grants depends on timing, so the messages differ a
     // little between links; an interrupt a byte adds 50 cycles at each end
-    // of every byte, sent or taken in.
+    // of every byte, sent or taken in. And the f413 host link holds four
+    // frames, so retirements wait and travel together there: at most every
+    // retirement message of the ideal links is saved (a message of three
+    // records costs less than three).
     let moved: u64 = irq.bytes.iter().chain(&irq.bytes_in).flatten().sum();
     let handling = irq_busy.messaging - 50 * moved;
+    let cost = sim_board::CostModel::default();
+    let retirements = ideal.frame.rays_terminated * cost.retire_message;
     for (name, m) in [("dma", dma_busy.messaging), ("irq less its bytes", handling)] {
-        let gap = m.abs_diff(ideal_busy.messaging) as f64 / ideal_busy.messaging as f64;
-        assert!(gap < 0.05, "{name}: messaging {m} against {} on ideal links", ideal_busy.messaging);
+        let (lo, hi) = (ideal_busy.messaging.saturating_sub(retirements), ideal_busy.messaging * 105 / 100);
+        assert!((lo..=hi).contains(&m), "{name}: messaging {m} against {} on ideal links", ideal_busy.messaging);
+        assert!(m < ideal_busy.messaging, "{name}: retirements did not travel together ({m})");
     }
     // 3 Mbaud at 100 MHz is 13 times slower a byte than the ideal link.
     assert!(irq.frame.makespan > ideal.frame.makespan);
