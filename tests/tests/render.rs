@@ -412,7 +412,11 @@ fn link_presets_change_time_not_the_image() {
     let retirements = ideal.frame.rays_terminated * cost.retire_message;
     for (name, m) in [("dma", dma_busy.messaging), ("irq less its bytes", handling)] {
         let (lo, hi) = (ideal_busy.messaging.saturating_sub(retirements), ideal_busy.messaging * 105 / 100);
-        assert!((lo..=hi).contains(&m), "{name}: messaging {m} against {} on ideal links", ideal_busy.messaging);
+        assert!(
+            (lo..=hi).contains(&m),
+            "{name}: messaging {m} against {} on ideal links",
+            ideal_busy.messaging
+        );
         assert!(m < ideal_busy.messaging, "{name}: retirements did not travel together ({m})");
     }
     // 3 Mbaud at 100 MHz is 13 times slower a byte than the ideal link.
