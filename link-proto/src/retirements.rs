@@ -35,29 +35,25 @@ impl Retire {
     // Handing it back is the point: the caller keeps it for another record.
     #[allow(clippy::result_large_err)]
     pub fn merge(&mut self, other: Retire) -> Result<(), Retire> {
-        let (Some(spawned), Some(rays)) =
-            (self.spawned.checked_add(other.spawned), self.rays.checked_add(other.rays))
-        else {
-            return Err(other);
-        };
-        let mut rgb = self.rgb;
-        for (sum, c) in rgb.iter_mut().zip(other.rgb) {
-            match sum.checked_add(c) {
-                Some(s) => *sum = s,
-                None => return Err(other),
+        let ([r0, g0, b0], [r1, g1, b1]) = (self.rgb, other.rgb);
+        match (
+            other.pixel == self.pixel,
+            [r0.checked_add(r1), g0.checked_add(g1), b0.checked_add(b1)],
+            self.credit.checked_add(other.credit),
+            self.spawned.checked_add(other.spawned),
+            self.rays.checked_add(other.rays),
+        ) {
+            (true, [Some(r), Some(g), Some(b)], Some(credit), Some(spawned), Some(rays)) => {
+                *self = Retire { pixel: self.pixel, rgb: [r, g, b], credit, spawned, rays };
+                Ok(())
             }
+            _ => Err(other),
         }
-        let Some(credit) = self.credit.checked_add(other.credit) else { return Err(other) };
-        if other.pixel != self.pixel {
-            return Err(other);
-        }
-        *self = Retire { pixel: self.pixel, rgb, credit, spawned, rays };
-        Ok(())
     }
 }
 
 /// One to [`Retirements::CAPACITY`] records, in the order they were added.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy)]
 pub struct Retirements {
     records: [Retire; Retirements::CAPACITY],
     len: u8,
@@ -72,7 +68,9 @@ impl Retirements {
     /// Records of one ray each, or summed per pixel.
     pub fn new(first: Retire) -> Self {
         let mut records = [Retire::default(); Self::CAPACITY];
-        records[0] = first;
+        if let Some(slot) = records.first_mut() {
+            *slot = first;
+        }
         Self { records, len: 1 }
     }
 
@@ -108,6 +106,15 @@ impl Retirements {
         }
     }
 }
+
+/// Equal when they hold the same records (what lies beyond them is not theirs).
+impl PartialEq for Retirements {
+    fn eq(&self, other: &Self) -> bool {
+        self.records() == other.records()
+    }
+}
+
+impl Eq for Retirements {}
 
 impl Serialize for Retirements {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {

@@ -263,7 +263,7 @@ impl<const W: usize> Channel<W> {
         }
         self.peer = Some(incarnation);
         self.expected = 0;
-        self.ack_sent();
+        self.ack_settled();
     }
 
     /// The peer lost our stream with its old state: renumber what it has not
@@ -331,7 +331,7 @@ impl<const W: usize> Channel<W> {
             && !(matches!(control, Message::Ack(_)) && (data_due || !self.ack_alone_due(now)))
             && write_control(control, buf, &mut write)
         {
-            self.ack_sent();
+            self.ack_settled();
         }
         if !self.synced {
             self.announce(now, buf, &mut write);
@@ -349,7 +349,7 @@ impl<const W: usize> Channel<W> {
                 break;
             }
             if frame.ack.is_some() {
-                self.ack_sent();
+                self.ack_settled();
             }
             if self.resend_from < self.written {
                 self.stats.retransmitted += 1;
@@ -376,8 +376,9 @@ impl<const W: usize> Channel<W> {
         now.saturating_sub(since) >= self.timeout / 4
     }
 
-    /// An acknowledgement went out, alone or riding on a data frame.
-    fn ack_sent(&mut self) {
+    /// No acknowledgement is owed any more: it went out, alone or riding on
+    /// a data frame, or the peer's stream started again.
+    fn ack_settled(&mut self) {
         self.control_due = None;
         self.taken_unacked = 0;
         self.ack_held_since = None;

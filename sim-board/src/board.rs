@@ -193,6 +193,8 @@ pub struct Board {
     to_host: BTreeMap<(u64, u16, u64), ToHost>,
     /// Order of sending, for `to_host`'s keys.
     to_host_seq: u64,
+    /// Per node, how many of `to_host` are its: what its host link holds.
+    to_host_held: Vec<usize>,
     restarted: bool,
 }
 
@@ -239,6 +241,7 @@ impl Board {
             last_to_host: 0,
             to_host: BTreeMap::new(),
             to_host_seq: 0,
+            to_host_held: vec![0; count],
             restarted: false,
         }
     }
@@ -348,12 +351,6 @@ impl Board {
         // Snapshot what each sender sees of its peer's inbox, and of its
         // host link the messages still on their way (a board's window and
         // transmit buffer hold only so many).
-        let mut to_host = vec![0usize; self.slots.len()];
-        for &(_, node, _) in self.to_host.keys() {
-            if let Some(n) = to_host.get_mut(usize::from(node)) {
-                *n += 1;
-            }
-        }
         for i in 0..self.slots.len() {
             for p in 0..6 {
                 if let Some(j) = self.neighbours[i][p] {
@@ -362,7 +359,8 @@ impl Board {
                     self.slots[i].ports[p].occupancy = occ;
                 }
             }
-            self.slots[i].ports[Port::Host.index()].occupancy = to_host.get(i).copied().unwrap_or(0);
+            self.slots[i].ports[Port::Host.index()].occupancy =
+                self.to_host_held.get(i).copied().unwrap_or(0);
         }
         let config = self.config;
         let active = |s: &Slot| s.next_event().is_some_and(|t| t < end);
@@ -418,6 +416,9 @@ impl Board {
     fn send_to_host(&mut self, at: u64, node: usize, what: ToHost) {
         self.to_host_seq += 1;
         self.to_host.insert((at, node as u16, self.to_host_seq), what);
+        if let Some(held) = self.to_host_held.get_mut(node) {
+            *held += 1;
+        }
     }
 
     /// Hands the host what has arrived by `now`, in arrival order (ties by
@@ -428,6 +429,9 @@ impl Board {
             let (at, node, _) = *entry.key();
             if at > now {
                 break;
+            }
+            if let Some(held) = self.to_host_held.get_mut(usize::from(node)) {
+                *held = held.saturating_sub(1);
             }
             // Progress is a message delivered to the host, not a frame resent.
             let last = &mut self.last_to_host;
