@@ -1,0 +1,50 @@
+//! The clocks of the node firmware on a NUCLEO-F413ZH.
+//!
+//! The core runs at the F413's full 100 MHz from the PLL, fed by the 8 MHz
+//! clock the on-board ST-LINK drives into OSC_IN (HSE bypass), or by the HSI
+//! when that clock is absent (the board's solder bridges choose).
+//! APB1 then runs at 50 MHz and APB2 at 100 MHz.
+//!
+//! The neighbour links cross both buses (a board's +X USART1 on APB2 meets
+//! its neighbour's -X USART2 on APB1), so both ends must divide to the same
+//! rate. 3 Mbaud cannot be: APB1 divides to 2.94 or 3.125 Mbaud, APB2 to
+//! 3.03. 3.125 Mbaud is exact on both (50 MHz / 16, 100 MHz / 32) and is
+//! what the links run at.
+
+use crate::pll::{ClockPlan, Limits, PllSource};
+use crate::usart::Brr;
+
+/// The ST-LINK's clock on OSC_IN, Hz.
+pub const HSE_HZ: u32 = 8_000_000;
+/// Core clock, Hz.
+pub const SYSCLK: u32 = 100_000_000;
+/// Rate of every neighbour link, baud.
+pub const NEIGHBOUR_BAUD: u32 = 3_125_000;
+/// Rate of the host link (USART3 to the ST-LINK's virtual COM port), baud.
+pub const HOST_BAUD: u32 = 921_600;
+
+/// The plan from the ST-LINK's clock.
+pub const FROM_HSE: ClockPlan = plan(PllSource::Hse(HSE_HZ));
+/// The plan from the internal oscillator.
+pub const FROM_HSI: ClockPlan = plan(PllSource::Hsi);
+
+const fn plan(source: PllSource) -> ClockPlan {
+    match ClockPlan::new(source, SYSCLK, Limits::STM32F413) {
+        Ok(plan) => plan,
+        Err(_) => panic!("no PLL plan for the core clock"),
+    }
+}
+
+const fn brr(pclk: u32, baud: u32) -> Brr {
+    match Brr::new(pclk, baud) {
+        Ok(brr) => brr,
+        Err(_) => panic!("the bus clock does not divide to the baud rate"),
+    }
+}
+
+/// Neighbour U(S)ARTs on APB1 (USART2, UART4, UART5, UART7).
+pub const NEIGHBOUR_APB1: Brr = brr(FROM_HSE.pclk1(), NEIGHBOUR_BAUD);
+/// Neighbour U(S)ARTs on APB2 (USART1, USART6).
+pub const NEIGHBOUR_APB2: Brr = brr(FROM_HSE.pclk2(), NEIGHBOUR_BAUD);
+/// The host USART3 (APB1).
+pub const HOST_APB1: Brr = brr(FROM_HSE.pclk1(), HOST_BAUD);
