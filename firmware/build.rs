@@ -6,8 +6,10 @@ fn main() {
         "mps2-an385"
     } else if env::var_os("CARGO_FEATURE_STM32F413").is_some() {
         "stm32f413"
+    } else if env::var_os("CARGO_FEATURE_NETDUINOPLUS2").is_some() {
+        "netduinoplus2"
     } else {
-        panic!("choose a board: --features mps2-an385 or --features stm32f413");
+        panic!("choose a board: --features mps2-an385, stm32f413 or netduinoplus2");
     };
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
     let map = format!("memory/{board}.x");

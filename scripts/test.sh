@@ -47,8 +47,10 @@ step "lints and build of the no_std crates for $THUMB"
 cargo clippy -p node-fw -p link-proto --target "$THUMB" --locked -- -D warnings
 cargo build -p node-fw --target "$THUMB" --release --locked
 (cd firmware && cargo clippy --release --locked --bins -- -D warnings)
-(cd firmware && cargo clippy --release --locked --bin node --no-default-features --features stm32f413 \
-    --target thumbv7em-none-eabihf -- -D warnings)
+for board in stm32f413 netduinoplus2; do
+    (cd firmware && cargo clippy --release --locked --bin node --no-default-features --features "$board" \
+        --target thumbv7em-none-eabihf -- -D warnings)
+done
 
 step "node firmware: builds, sizes against the budget, kernel instruction counts on QEMU"
 scripts/firmware.sh

@@ -9,7 +9,7 @@ pub mod mps2_an385;
 #[cfg(feature = "mps2-an385")]
 pub use mps2_an385 as active;
 
-#[cfg(feature = "stm32f413")]
+#[cfg(any(feature = "stm32f413", feature = "netduinoplus2"))]
 pub mod stm32f413;
-#[cfg(all(feature = "stm32f413", not(feature = "mps2-an385")))]
+#[cfg(all(any(feature = "stm32f413", feature = "netduinoplus2"), not(feature = "mps2-an385")))]
 pub use stm32f413 as active;

@@ -1,20 +1,43 @@
-//! What a node holds on a board with 64 KiB of RAM.
+//! What a node holds, per board profile.
 //!
-//! Sizes (measured from the ELF, `scripts/firmware.sh`): the node with its
-//! storage, the seven reliable channels and the transmit rings take the
-//! static RAM; the rest of the 64 KiB is stack.
+//! The node with its storage, the seven reliable channels and the transmit
+//! rings are the static RAM; the rest is stack. `scripts/firmware.sh` prints
+//! each image's sizes against its chip and fails one that does not leave
+//! its stack.
 
 use node_fw::Node;
 use node_fw::framed::FramedLinks;
 
+/// One profile's storage.
+struct Profile {
+    spheres: usize,
+    refs: usize,
+    cubes: usize,
+    rays: usize,
+}
+
+/// A small microcontroller's 64 KiB (the emulated mps2-an385 keeps to it).
+#[cfg(feature = "mps2-an385")]
+const PROFILE: Profile = Profile { spheres: 128, refs: 2048, cubes: 1024, rays: 96 };
+
+/// The STM32F413's 320 KiB: the paper's 1000-sphere scene on a 32^3 grid fits
+/// a 2x2x2 array (its busiest node of a preview layout needs 7 344 cubes,
+/// 241 spheres and 2 289 references).
+#[cfg(all(feature = "stm32f413", not(feature = "mps2-an385")))]
+const PROFILE: Profile = Profile { spheres: 1024, refs: 32_768, cubes: 32_768, rays: 512 };
+
+/// QEMU's netduinoplus2 has 192 KiB.
+#[cfg(all(feature = "netduinoplus2", not(feature = "mps2-an385"), not(feature = "stm32f413")))]
+const PROFILE: Profile = Profile { spheres: 512, refs: 16_384, cubes: 16_384, rays: 256 };
+
 /// Spheres a node holds (those touching its storage box).
-pub const SPHERES: usize = 128;
+pub const SPHERES: usize = PROFILE.spheres;
 /// Sphere references over all cubes of the box.
-pub const REFS: usize = 2048;
-/// Cubes of the storage box (e.g. 8 x 8 x 16).
-pub const CUBES: usize = 1024;
+pub const REFS: usize = PROFILE.refs;
+/// Cubes of the storage box.
+pub const CUBES: usize = PROFILE.cubes;
 /// Ray slots (class levels x queue depth).
-pub const RAYS: usize = 96;
+pub const RAYS: usize = PROFILE.rays;
 /// Unacknowledged frames per link.
 pub const WINDOW: usize = 4;
 /// Received messages waiting per port.
