@@ -7,7 +7,8 @@
 //! out of order makes it send a negative acknowledgement for the one it
 //! expects. The sender keeps up to `W` unacknowledged frames and sends them
 //! all again from the oldest on a negative acknowledgement or when no
-//! acknowledgement has come for `timeout` ticks. Sans-IO: the caller passes
+//! acknowledgement has come for `timeout` ticks, waiting twice as long after
+//! each time-out in a row ([`MAX_BACKOFF`]). Sans-IO: the caller passes
 //! the time in; storage is fixed at compile time.
 //!
 //! **Synchronisation.** Before its first data frame a channel sends
@@ -30,6 +31,10 @@ use link_proto::{DecodeError, Frame, FrameDecoder, MAX_FRAME_LEN, Message, PROTO
 fn precedes(a: u16, b: u16) -> bool {
     a != b && b.wrapping_sub(a) < 0x8000
 }
+
+/// Doublings of the resend time-out after time-outs in a row (16 times the
+/// time-out at most), as TCP backs off its retransmission timer.
+pub const MAX_BACKOFF: u32 = 4;
 
 /// Counters of one channel (or, summed, of many).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -108,6 +113,11 @@ pub struct Channel<const W: usize> {
     peer_restarted: bool,
     decoder: FrameDecoder,
     timeout: u64,
+    /// How long the window may now go without progress before it is resent:
+    /// `timeout`, doubled by each time-out in a row up to [`MAX_BACKOFF`]
+    /// doublings, so that a link slower than the time-out assumes is not
+    /// flooded with copies of what is still on its way.
+    resend_wait: u64,
     /// Counters.
     pub stats: ChannelStats,
 }
@@ -138,6 +148,7 @@ impl<const W: usize> Channel<W> {
             peer_restarted: false,
             decoder: FrameDecoder::new(),
             timeout,
+            resend_wait: timeout,
             stats: ChannelStats { retransmitted: 0, corrupted: 0, discarded: 0, peer_restarts: 0 },
         }
     }
@@ -318,10 +329,13 @@ impl<const W: usize> Channel<W> {
             self.sync_ack_due = None;
         }
         self.track_progress(now);
-        if self.synced && !self.unacked.is_empty() && now.saturating_sub(self.progress_at) >= self.timeout {
-            // No progress for a whole time-out: go back to the oldest frame.
+        if self.synced && !self.unacked.is_empty() && now.saturating_sub(self.progress_at) >= self.resend_wait
+        {
+            // No progress for a whole time-out: go back to the oldest frame,
+            // and wait twice as long before doing so again.
             self.resend_from = 0;
             self.progress_at = now;
+            self.resend_wait = self.resend_wait.saturating_mul(2).min(self.timeout << MAX_BACKOFF);
         }
         // An ack rides on the first data frame that goes out; only without
         // one does it take a frame of its own, and then only once it answers
@@ -390,6 +404,7 @@ impl<const W: usize> Channel<W> {
         let acked = core::mem::take(&mut self.acked_now);
         if acked || self.unacked.is_empty() {
             self.progress_at = now;
+            self.resend_wait = self.timeout;
         }
         self.owed_since = match (self.unacked.is_empty(), self.owed_since) {
             (true, _) => None,

@@ -329,3 +329,44 @@ fn a_one_way_stream_is_acknowledged_once_per_half_window() {
     a.receive(&back, |_| true);
     assert!(!a.busy());
 }
+
+#[test]
+fn resends_back_off_while_the_peer_stays_silent_and_recover_on_an_ack() {
+    let (mut a, mut b) = (Channel::<4>::new(100), Channel::<4>::new(100));
+    a.set_incarnation(1);
+    b.set_incarnation(2);
+    let (mut now, mut got_a, mut got_b) = (0, Vec::new(), Vec::new());
+    a.send(msg(0)).unwrap();
+    exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
+    assert!(!a.busy());
+
+    // A frame into silence: its copies go out after 100, then 200, 400, 800
+    // and 1 600 ticks more, and then every 1 600 (the backoff's cap).
+    let start = now;
+    a.send(msg(1)).unwrap();
+    let (mut sent_at, mut last_copy) = (Vec::new(), Vec::new());
+    for t in start..start + 5_000 {
+        let (bytes, frames) = written(&mut a, t);
+        if frames.iter().any(|f| f.msg == msg(1)) {
+            sent_at.push(t - start);
+            last_copy = bytes;
+        }
+    }
+    assert_eq!(sent_at, [0, 100, 300, 700, 1_500, 3_100, 4_700]);
+    assert_eq!(a.stats.retransmitted, 6);
+
+    // The peer answers at last: the next frame is resent after one
+    // time-out again.
+    let mut ack = Vec::new();
+    b.receive(&last_copy, |_| true);
+    for t in 0..100 {
+        ack.extend(written(&mut b, start + 4_700 + t).0);
+    }
+    a.receive(&ack, |_| true);
+    assert!(!a.busy(), "acknowledged");
+    let again = start + 5_000;
+    a.send(msg(2)).unwrap();
+    assert!(written(&mut a, again).1.iter().any(|f| f.msg == msg(2)));
+    assert!(!written(&mut a, again + 99).1.iter().any(|f| f.msg == msg(2)), "not before the time-out");
+    assert!(written(&mut a, again + 100).1.iter().any(|f| f.msg == msg(2)), "resent after one time-out");
+}
