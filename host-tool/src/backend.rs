@@ -4,24 +4,23 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use crate::error::{HostError, input};
-use crate::qemu::QemuArray;
+use crate::qemu::{EmulatedBoard, QemuArray};
 use crate::render::{
     Array, RenderOptions, RenderResult, check_frame, initial_partition, render_on, render_sim,
 };
 use crate::scene::Scene;
 use crate::serial::SerialArray;
 
-/// The firmware the QEMU backend runs unless told otherwise.
-pub const DEFAULT_FIRMWARE: &str = "target/thumbv7m-none-eabi/release/node";
-
 /// What carries the frame.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Backend {
     /// The in-memory board (deterministic virtual time).
     Sim,
-    /// One QEMU mps2-an385 per node running this firmware ELF.
+    /// One emulated board per node running this firmware ELF.
     Qemu {
-        /// The node firmware.
+        /// The board QEMU emulates.
+        board: EmulatedBoard,
+        /// The node firmware built for it.
         firmware: PathBuf,
     },
     /// Real boards, node `i` on serial device `i`.
@@ -42,10 +41,10 @@ pub fn render(
     let nodes: usize = opts.array.iter().map(|&n| usize::from(n)).product();
     match backend {
         Backend::Sim => render_sim(scene, opts),
-        Backend::Qemu { firmware } => {
+        Backend::Qemu { board, firmware } => {
             // Check the scene before starting eight emulators.
             initial_partition(scene, opts, sim_board::SimNode::capacity())?;
-            let qemu = QemuArray::launch(opts.array, firmware)?;
+            let qemu = QemuArray::launch(*board, opts.array, firmware)?;
             let result = render_serial(scene, opts, &qemu.ptys, node_timeout);
             drop(qemu);
             result

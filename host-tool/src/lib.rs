@@ -21,6 +21,7 @@ pub mod partition;
 pub mod plot;
 pub mod qemu;
 pub mod reference;
+pub mod relay;
 pub mod render;
 pub mod run_files;
 pub mod scaling;

@@ -8,6 +8,7 @@ use host_tool::backend::Backend;
 use host_tool::compare::compare;
 use host_tool::error::{HostError, input};
 use host_tool::output::{check_writable, png, write_all_atomic, write_atomic};
+use host_tool::qemu::EmulatedBoard;
 use host_tool::render::{Initial, Layout, RenderOptions, render_sim};
 use host_tool::run_files::{
     boundary_history_csv, history_plot, imbalance, load_history_csv, loads_csv, summary_json,
@@ -142,7 +143,7 @@ struct SceneArgs {
 #[derive(Args, Clone)]
 struct LinkArgs {
     /// Links of the in-memory board: f413 (NUCLEO-F413ZH boards: 100 MHz,
-    /// neighbour USARTs at 3 Mbaud, host at 921 600 baud, a byte interrupt),
+    /// neighbour USARTs at 3.125 Mbaud, host at 921 600 baud, a byte interrupt),
     /// ideal (25 cycles a byte, no CPU per byte) or emulated (the QEMU
     /// boards: polled UARTs, the loop's pass charged) [default: f413].
     #[arg(long, value_name = "PRESET", value_parser = host_tool::links::preset_named)]
@@ -262,10 +263,28 @@ enum AxisChoice {
 }
 
 #[derive(Clone, Copy, ValueEnum)]
+enum BoardChoice {
+    /// ARM's mps2-an385 (Cortex-M3, four neighbour UARTs): the small-MCU image.
+    #[value(name = "mps2-an385")]
+    Mps2An385,
+    /// An STM32F405 model with the F413's six neighbour U(S)ARTs: the STM32 image.
+    Netduinoplus2,
+}
+
+impl From<BoardChoice> for EmulatedBoard {
+    fn from(choice: BoardChoice) -> Self {
+        match choice {
+            BoardChoice::Mps2An385 => EmulatedBoard::Mps2An385,
+            BoardChoice::Netduinoplus2 => EmulatedBoard::Netduinoplus2,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
 enum BackendChoice {
     /// The in-memory board (deterministic virtual time).
     Sim,
-    /// One QEMU mps2-an385 per node running the node firmware.
+    /// One emulated board per node (--board) running the node firmware.
     Qemu,
     /// Real boards on the serial devices given by --ports.
     Serial,
@@ -283,9 +302,13 @@ struct RenderArgs {
     /// Serial devices of the nodes in node order (x fastest), comma-separated (--backend serial).
     #[arg(long, value_name = "DEV,DEV,...", value_delimiter = ',')]
     ports: Vec<String>,
-    /// Node firmware ELF for --backend qemu.
-    #[arg(long, value_name = "ELF", default_value = host_tool::backend::DEFAULT_FIRMWARE)]
-    firmware: PathBuf,
+    /// The board QEMU emulates for --backend qemu.
+    #[arg(long, value_enum, default_value = "mps2-an385")]
+    board: BoardChoice,
+    /// Node firmware ELF for --backend qemu [default: the board's image from scripts/firmware.sh,
+    /// target/firmware/node-BOARD.elf].
+    #[arg(long, value_name = "ELF")]
+    firmware: Option<PathBuf>,
     /// Seconds a node may leave the host unanswered before the run fails (qemu, serial).
     #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
     node_timeout: f64,
@@ -480,7 +503,11 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
     }
     let backend = match args.backend {
         BackendChoice::Sim => Backend::Sim,
-        BackendChoice::Qemu => Backend::Qemu { firmware: args.firmware.clone() },
+        BackendChoice::Qemu => {
+            let board = EmulatedBoard::from(args.board);
+            let firmware = args.firmware.clone().unwrap_or_else(|| board.default_firmware());
+            Backend::Qemu { board, firmware }
+        }
         BackendChoice::Serial => Backend::Serial { ports: args.ports.clone() },
     };
     if backend != Backend::Sim && (args.faults.is_some() || args.restart_node.is_some()) {

@@ -1,15 +1,19 @@
-//! An array of emulated boards: one QEMU mps2-an385 per node, wired UART to
-//! UART through Unix sockets, each joined to the host over a pty.
+//! An array of emulated boards: one QEMU instance per node, each joined to
+//! the host over a pty, their neighbour UARTs joined through a relay that
+//! host-tool owns.
 //!
-//! Node `i` runs the node firmware; its UART 0 is a pty the host opens as a
-//! serial device, and UARTs 1-4 go to the neighbour ports that exist, in
-//! port order ([`node_fw::wiring::uart_ports`], the rule the firmware uses).
-//! Of each neighbouring pair the lower node listens on the socket and the
-//! higher connects (and reconnects until the listener is up). Every instance
-//! runs with `-icount shift=0`, so its clock counts instructions. The
-//! instances are stopped when the array is dropped.
+//! Node `i` runs the node firmware; its host UART is a pty the host opens as
+//! a serial device. Each neighbour UART is a Unix socket that QEMU connects
+//! to and the [`relay`](crate::relay) reads from and writes to. Some emulated
+//! UARTs (the STM32 ones) block the emulator while a write cannot be
+//! delivered, so two boards wired socket to socket that write to each other
+//! at once would stall for ever; the relay always reads, and buffers what the
+//! other end is not yet taking. Every instance runs with `-icount shift=0`,
+//! so its clock counts instructions. The instances are stopped when the
+//! array is dropped.
 
 use std::io::{BufRead, BufReader};
+use std::os::unix::net::UnixListener;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
@@ -19,62 +23,164 @@ use node_fw::Port;
 use node_fw::wiring::{coord_of, index_of, uart_ports};
 
 use crate::error::{HostError, input};
+use crate::relay::Relay;
 
 /// The QEMU binary.
 pub const QEMU: &str = "qemu-system-arm";
-/// Neighbour UARTs of an mps2-an385.
-const NEIGHBOUR_UARTS: usize = 4;
+/// How long the emulators get to start and connect.
+const START_TIMEOUT: Duration = Duration::from_secs(20);
 
-/// Running QEMU instances and the ptys of their host UARTs.
+/// A board QEMU emulates that the node firmware is built for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum EmulatedBoard {
+    /// ARM's mps2-an385 (Cortex-M3, five UARTs): the small-MCU image.
+    #[default]
+    Mps2An385,
+    /// The netduinoplus2 (an STM32F405 model with the F413's seven
+    /// U(S)ARTs): the STM32 image, built with the emulated SoC's RAM.
+    Netduinoplus2,
+}
+
+/// What one `-serial` of an instance carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Serial {
+    Host,
+    Neighbour(Port),
+    Unused,
+}
+
+impl EmulatedBoard {
+    /// Every board, for help texts and tests.
+    pub const ALL: [EmulatedBoard; 2] = [EmulatedBoard::Mps2An385, EmulatedBoard::Netduinoplus2];
+
+    /// The QEMU machine name, also the board's name on the command line.
+    pub const fn name(self) -> &'static str {
+        match self {
+            EmulatedBoard::Mps2An385 => "mps2-an385",
+            EmulatedBoard::Netduinoplus2 => "netduinoplus2",
+        }
+    }
+
+    /// Neighbour UARTs of the board.
+    pub const fn neighbour_uarts(self) -> usize {
+        match self {
+            EmulatedBoard::Mps2An385 => 4,
+            EmulatedBoard::Netduinoplus2 => 6,
+        }
+    }
+
+    /// The firmware image `scripts/firmware.sh` builds for the board,
+    /// found from wherever host-tool runs: beside its own target directory,
+    /// else in the source tree it was built from.
+    pub fn default_firmware(self) -> PathBuf {
+        let file = format!("node-{}.elf", self.name());
+        let beside_exe = std::env::current_exe()
+            .ok()
+            .and_then(|exe| exe.parent()?.parent().map(|target| target.join("firmware").join(&file)));
+        let in_tree = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/firmware").join(&file);
+        beside_exe.filter(|p| p.is_file()).unwrap_or(in_tree)
+    }
+
+    /// What each `-serial` carries for the node at `coord` of `array`, in
+    /// QEMU's order, or the first port the board has no UART for.
+    fn serials(self, coord: [u16; 3], array: [u16; 3]) -> Result<Vec<Serial>, Port> {
+        let as_serial = |p: Option<Port>| p.map_or(Serial::Unused, Serial::Neighbour);
+        match self {
+            // UART 0 is the host's; UARTs 1-4 serve the ports that exist.
+            EmulatedBoard::Mps2An385 => {
+                let map = uart_ports::<4>(coord, array)?;
+                Ok(std::iter::once(Serial::Host).chain(map.map(as_serial)).collect())
+            }
+            // QEMU binds `-serial` to the U(S)ARTs in address order: USART1
+            // (+X), USART2 (-X), USART3 (host), UART4 (+Y), UART5 (-Y),
+            // USART6 (+Z), UART7 (-Z); the firmware's fixed map is in port order.
+            EmulatedBoard::Netduinoplus2 => {
+                let [px, nx, py, ny, pz, nz] = uart_ports::<6>(coord, array)?.map(as_serial);
+                Ok(vec![px, nx, Serial::Host, py, ny, pz, nz])
+            }
+        }
+    }
+
+    fn machine_args(self) -> &'static [&'static str] {
+        match self {
+            EmulatedBoard::Mps2An385 => &["-machine", "mps2-an385", "-cpu", "cortex-m3"],
+            EmulatedBoard::Netduinoplus2 => &["-machine", "netduinoplus2"],
+        }
+    }
+}
+
+/// Running QEMU instances, the ptys of their host UARTs and the relay
+/// joining their neighbour UARTs.
 pub struct QemuArray {
     children: Vec<Child>,
     /// Host-side device of each node, in node order.
     pub ptys: Vec<String>,
+    relay: Relay,
     _sockets: tempfile::TempDir,
 }
 
 impl QemuArray {
-    /// Starts one instance per node of `array` running `firmware`.
-    pub fn launch(array: [u16; 3], firmware: &Path) -> Result<Self, HostError> {
+    /// Starts one `board` instance per node of `array` running `firmware`.
+    pub fn launch(board: EmulatedBoard, array: [u16; 3], firmware: &Path) -> Result<Self, HostError> {
         if !firmware.is_file() {
             return Err(HostError::Io(format!(
-                "firmware {} not found; build it with scripts/firmware.sh",
+                "firmware {} not found; build it with scripts/firmware.sh or give --firmware",
                 firmware.display()
             )));
+        }
+        let nodes: usize = array.iter().map(|&n| usize::from(n)).product();
+        let mut plans = Vec::with_capacity(nodes);
+        for id in 0..nodes {
+            let coord = coord_of(id, array);
+            let serials = board.serials(coord, array).map_err(|port| {
+                input(format!(
+                    "node {id} ({},{},{}) needs a link on {port:?}, but an {} has {} neighbour UARTs; \
+                     use --board netduinoplus2 (six) or an array with at most {} neighbours per node",
+                    coord[0],
+                    coord[1],
+                    coord[2],
+                    board.name(),
+                    board.neighbour_uarts(),
+                    board.neighbour_uarts()
+                ))
+            })?;
+            plans.push(serials);
         }
         let sockets = tempfile::Builder::new()
             .prefix("sliding-qemu")
             .tempdir()
             .map_err(|e| HostError::Io(format!("socket directory: {e}")))?;
-        let mut qemu = QemuArray { children: Vec::new(), ptys: Vec::new(), _sockets: sockets };
-        let nodes: usize = array.iter().map(|&n| usize::from(n)).product();
+        let mut relay = Relay::new();
+        let mut qemu = QemuArray {
+            children: Vec::new(),
+            ptys: vec![String::new(); nodes],
+            relay: Relay::new(),
+            _sockets: sockets,
+        };
         let (tx, rx) = mpsc::channel();
-        for id in 0..nodes {
-            let coord = coord_of(id, array);
-            let map = uart_ports::<NEIGHBOUR_UARTS>(coord, array).map_err(|port| {
-                input(format!(
-                    "node {id} ({},{},{}) needs a link on {port:?}, but an mps2-an385 has {NEIGHBOUR_UARTS} \
-                     neighbour UARTs; use an array with at most {NEIGHBOUR_UARTS} neighbours per node",
-                    coord[0], coord[1], coord[2]
-                ))
-            })?;
-            let mut cmd = Command::new(QEMU);
-            cmd.args(["-machine", "mps2-an385", "-cpu", "cortex-m3", "-display", "none", "-monitor", "none"]);
-            cmd.args(["-icount", "shift=0", "-semihosting-config", "enable=on,target=native"]);
-            cmd.args(["-serial", "pty"]);
-            for (uart, port) in map.iter().enumerate() {
-                match port {
-                    Some(port) => {
-                        let (socket, listen) = qemu.socket(id, coord, array, *port);
-                        let role = if listen { "server=on,wait=off" } else { "reconnect=1" };
-                        cmd.args([
-                            "-chardev",
-                            &format!("socket,id=n{uart},path={},{role}", socket.display()),
-                        ]);
-                        cmd.args(["-serial", &format!("chardev:n{uart}")]);
+        for (id, serials) in plans.iter().enumerate() {
+            let mut cmd = Command::new("nice");
+            cmd.args(["-n", "10", QEMU]);
+            cmd.args(board.machine_args());
+            cmd.args(["-display", "none", "-monitor", "none", "-icount", "shift=0"]);
+            cmd.args(["-semihosting-config", "enable=on,target=native"]);
+            let mut host_label = String::new();
+            for (i, serial) in serials.iter().enumerate() {
+                match serial {
+                    Serial::Host => {
+                        host_label = format!("serial{i}");
+                        cmd.args(["-serial", "pty"]);
                     }
-                    None => {
+                    Serial::Unused => {
                         cmd.args(["-serial", "null"]);
+                    }
+                    Serial::Neighbour(port) => {
+                        let path = qemu._sockets.path().join(format!("n{id}-{}.sock", port.index()));
+                        let listener = UnixListener::bind(&path)
+                            .map_err(|e| HostError::Io(format!("link socket {}: {e}", path.display())))?;
+                        relay.end(link_of(id, *port, array), id, *port, listener);
+                        cmd.args(["-chardev", &format!("socket,id=n{i},path={}", path.display())]);
+                        cmd.args(["-serial", &format!("chardev:n{i}")]);
                     }
                 }
             }
@@ -85,17 +191,18 @@ impl QemuArray {
                     "cannot start {QEMU}: {e}; install it (Debian: apt-get install qemu-system-arm)"
                 ))
             })?;
-            watch_for_pty(id, &mut child, tx.clone());
+            watch_for_pty(id, host_label, &mut child, tx.clone());
             qemu.children.push(child);
         }
-        qemu.ptys = vec![String::new(); nodes];
         for _ in 0..nodes {
-            match rx.recv_timeout(Duration::from_secs(20)) {
+            match rx.recv_timeout(START_TIMEOUT) {
                 Ok((id, Ok(pty))) => qemu.ptys[id] = pty,
                 Ok((id, Err(why))) => return Err(HostError::Node(format!("QEMU of node {id} {why}"))),
                 Err(_) => return Err(HostError::Node("QEMU did not report its pty within 20 s".into())),
             }
         }
+        relay.join(START_TIMEOUT)?;
+        qemu.relay = relay;
         Ok(qemu)
     }
 
@@ -104,17 +211,23 @@ impl QemuArray {
         self.children.get(node).map(Child::id)
     }
 
-    /// The socket of the link from node `id` through `port`, and whether `id` listens on it.
-    fn socket(&self, id: usize, coord: [u16; 3], array: [u16; 3], port: Port) -> (PathBuf, bool) {
-        let axis = port.axis().unwrap_or(0);
-        let mut other = coord;
-        if let Some(c) = other.get_mut(axis) {
-            *c = if port.index().is_multiple_of(2) { *c + 1 } else { *c - 1 };
-        }
-        let other = usize::from(index_of(other, array).unwrap_or(0));
-        let (lo, hi) = (id.min(other), id.max(other));
-        (self._sockets.path().join(format!("link-{lo}-{hi}.sock")), id == lo)
+    /// Bytes the relay carried from node `node`, per neighbour port (port
+    /// order, host first and always zero).
+    pub fn bytes_relayed(&self, node: usize) -> [u64; 7] {
+        self.relay.bytes_from(node)
     }
+}
+
+/// The link from node `id` through `port`: (lower node, its port, higher
+/// node), the same from either end.
+fn link_of(id: usize, port: Port, array: [u16; 3]) -> (usize, Port, usize) {
+    let axis = port.axis().unwrap_or(0);
+    let mut other = coord_of(id, array);
+    if let Some(c) = other.get_mut(axis) {
+        *c = if port.index().is_multiple_of(2) { *c + 1 } else { *c - 1 };
+    }
+    let other = usize::from(index_of(other, array).unwrap_or(0));
+    if id < other { (id, port, other) } else { (other, port.opposite(), id) }
 }
 
 impl Drop for QemuArray {
@@ -126,8 +239,14 @@ impl Drop for QemuArray {
     }
 }
 
-/// Reads QEMU's "char device redirected to /dev/pts/N (label serial0)" line.
-fn watch_for_pty(id: usize, child: &mut Child, tx: mpsc::Sender<(usize, Result<String, String>)>) {
+/// Reads QEMU's "char device redirected to /dev/pts/N (label serialK)" line
+/// for the host UART's label.
+fn watch_for_pty(
+    id: usize,
+    label: String,
+    child: &mut Child,
+    tx: mpsc::Sender<(usize, Result<String, String>)>,
+) {
     let streams: Vec<Box<dyn std::io::Read + Send>> = [
         child.stderr.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>),
         child.stdout.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>),
@@ -137,11 +256,12 @@ fn watch_for_pty(id: usize, child: &mut Child, tx: mpsc::Sender<(usize, Result<S
     .collect();
     for stream in streams {
         let tx = tx.clone();
+        let label = format!("(label {label})");
         std::thread::spawn(move || {
             let mut said = Vec::new();
             for line in BufReader::new(stream).lines().map_while(Result::ok) {
                 if let Some(rest) = line.split("redirected to ").nth(1)
-                    && line.contains("serial0")
+                    && line.contains(&label)
                 {
                     let pty = rest.split_whitespace().next().unwrap_or_default().to_string();
                     let _ = tx.send((id, Ok(pty)));

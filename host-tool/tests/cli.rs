@@ -195,7 +195,7 @@ fn default_render_writes_image_loads_and_summary() {
     assert_eq!(summary["rays_refused"].as_u64(), Some(refused));
     // The links it ran on, and where the busy cycles went.
     assert_eq!(summary["link"]["preset"], "f413");
-    assert_eq!(summary["link"]["neighbour"]["wire_cycles_per_byte"], 334);
+    assert_eq!(summary["link"]["neighbour"]["wire_cycles_per_byte"], 320);
     let busy = &summary["busy"];
     let kinds = ["compute", "setup", "messaging"].map(|k| busy[k].as_u64().unwrap());
     let share = busy["messaging_share"].as_f64().unwrap();

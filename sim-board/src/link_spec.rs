@@ -9,6 +9,8 @@
 //! messaging time. The message handling itself (framing, CRC, the reliable
 //! channel) is the [`crate::CostModel`]'s, measured on the emulated Cortex-M3.
 
+use clock_tree::nucleo_f413zh as nucleo;
+
 use crate::cost::LinkModel;
 
 /// How a board moves a byte between a UART's data register and memory.
@@ -89,10 +91,12 @@ impl LinkSpec {
 /// Named links: the neighbour links and the host link of a kind of board.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum LinkPreset {
-    /// NUCLEO-F413ZH boards as the firmware is to configure them: the core at
-    /// its full 100 MHz from the PLL, neighbour USARTs at 3 Mbaud with a byte
-    /// interrupt, and the host link through the ST-LINK's virtual COM port
-    /// at 921 600 baud (a rate its bridge takes; set `--host-baud` to yours).
+    /// NUCLEO-F413ZH boards as the firmware configures them
+    /// ([`clock_tree::nucleo_f413zh`]): the core at its full 100 MHz from the
+    /// PLL, neighbour USARTs at 3.125 Mbaud (the rate nearest 3 Mbaud that
+    /// both of its buses divide to exactly) with a byte interrupt, and the
+    /// host link through the ST-LINK's virtual COM port at 921 600 baud (a
+    /// rate its bridge takes; set `--host-baud` to yours).
     #[default]
     F413,
     /// The links the board charged before presets: 25 cycles a byte (40 Mbaud
@@ -122,8 +126,8 @@ impl LinkPreset {
     pub const fn neighbour(self) -> LinkSpec {
         match self {
             LinkPreset::F413 => LinkSpec {
-                clock_hz: 100_000_000,
-                baud: 3_000_000,
+                clock_hz: nucleo::SYSCLK as u64,
+                baud: nucleo::NEIGHBOUR_BAUD as u64,
                 transfer: Transfer::Interrupt,
                 latency: 2_000,
                 capacity: 8,
@@ -178,7 +182,7 @@ impl LinkPreset {
         let n = self.neighbour();
         match self {
             // A board's host channel has a window of four frames.
-            LinkPreset::F413 => LinkSpec { baud: 921_600, capacity: 4, ..n },
+            LinkPreset::F413 => LinkSpec { baud: nucleo::HOST_BAUD as u64, capacity: 4, ..n },
             LinkPreset::Emulated => LinkSpec { capacity: 4, ..n },
             LinkPreset::Ideal => LinkSpec { capacity: 64, ..n },
         }
@@ -191,9 +195,9 @@ mod tests {
 
     #[test]
     fn byte_time_is_ten_bits_at_the_line_rate() {
-        // Computed by hand: 100 MHz x 10 bits / 3 Mbaud = 333.3 cycles.
+        // Computed by hand: 100 MHz x 10 bits / 3.125 Mbaud = 320 cycles.
         let f413 = LinkPreset::F413.neighbour();
-        assert_eq!(f413.byte_cycles(), 334);
+        assert_eq!(f413.byte_cycles(), 320);
         assert_eq!(LinkPreset::F413.host().byte_cycles(), 1_086);
         // The ideal preset is the board's former fixed link.
         let ideal = LinkPreset::Ideal.neighbour().model();

@@ -1,6 +1,6 @@
-//! The node firmware on emulated boards: a 2x2x2 array of QEMU mps2-an385
-//! instances renders the same image as the in-memory board, and a node that
-//! stops answering is named.
+//! The node firmware on emulated boards: 2x2x2 arrays of QEMU mps2-an385 and
+//! netduinoplus2 (STM32) instances render the same image as the in-memory
+//! board, and a node that stops answering is named.
 //!
 //! Needs `qemu-system-arm` and the firmware (`scripts/firmware.sh`); the
 //! test command (`scripts/test.sh`) installs and builds both first.
@@ -11,7 +11,7 @@ use std::sync::{Mutex, MutexGuard};
 use std::time::Duration;
 
 use host_tool::backend::{Backend, render};
-use host_tool::qemu::{QEMU, QemuArray};
+use host_tool::qemu::{EmulatedBoard, QEMU, QemuArray};
 use host_tool::render::{Array, RenderOptions, check_frame, initial_partition, render_on, render_sim};
 use host_tool::scene::Scene;
 use host_tool::serial::SerialArray;
@@ -25,9 +25,8 @@ fn one_array() -> MutexGuard<'static, ()> {
     ONE_ARRAY.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
-fn firmware() -> PathBuf {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let elf = root.join("target/thumbv7m-none-eabi/release/node");
+fn firmware(board: EmulatedBoard) -> PathBuf {
+    let elf = board.default_firmware();
     assert!(elf.is_file(), "{} is missing: run scripts/firmware.sh (scripts/test.sh does)", elf.display());
     let qemu = Command::new(QEMU).arg("--version").output();
     assert!(
@@ -49,17 +48,20 @@ fn options(balance: Option<Balance>) -> RenderOptions {
     opts
 }
 
-#[test]
-fn qemu_array_matches_the_in_memory_board() {
+/// Renders the test frame on a 2x2x2 array of `board`, static and sliding,
+/// and compares each with the in-memory board.
+fn matches_the_in_memory_board(board: EmulatedBoard) {
     let _one = one_array();
-    let firmware = firmware();
+    let backend = Backend::Qemu { board, firmware: firmware(board) };
     let s = scene();
     let sliding = Balance { interval: 500_000, threshold: 1 << 16, step: 1, policy: SlidePolicy::Paper };
     for balance in [None, Some(sliding)] {
         let opts = options(balance);
         let memory = render_sim(&s, &opts).expect("in-memory render");
-        let qemu = render(&s, &opts, &Backend::Qemu { firmware: firmware.clone() }, Duration::from_secs(30))
-            .unwrap_or_else(|e| panic!("qemu render ({balance:?}): {e}"));
+        let started = std::time::Instant::now();
+        let qemu = render(&s, &opts, &backend, Duration::from_secs(30))
+            .unwrap_or_else(|e| panic!("{} render ({balance:?}): {e}", board.name()));
+        eprintln!("{} 2x2x2 ({balance:?}): {:.1} s", board.name(), started.elapsed().as_secs_f64());
         assert_eq!(qemu.frame.rays_created, qemu.frame.rays_terminated, "every ray accounted for");
         assert_eq!(qemu.frame.rays_created, memory.frame.rays_created);
         assert!(
@@ -68,9 +70,19 @@ fn qemu_array_matches_the_in_memory_board() {
         );
         assert!(qemu.frame.loads.iter().all(Option::is_some), "every node reported its load");
         if balance.is_some() {
-            eprintln!("qemu with sliding: {} slides committed", qemu.frame.slides.len());
+            eprintln!("{} with sliding: {} slides committed", board.name(), qemu.frame.slides.len());
         }
     }
+}
+
+#[test]
+fn an_mps2_array_matches_the_in_memory_board() {
+    matches_the_in_memory_board(EmulatedBoard::Mps2An385);
+}
+
+#[test]
+fn an_stm32_array_matches_the_in_memory_board() {
+    matches_the_in_memory_board(EmulatedBoard::Netduinoplus2);
 }
 
 /// The in-memory board with the emulated boards' links charges each node
@@ -85,7 +97,7 @@ fn qemu_array_matches_the_in_memory_board() {
 #[test]
 fn the_in_memory_board_predicts_the_busiest_emulated_node() {
     let _one = one_array();
-    let firmware = firmware();
+    let board = EmulatedBoard::Mps2An385;
     let s = scene();
     let mut opts = options(None);
     opts.sim = sim_board::SimConfig::with_links([2, 2, 2], sim_board::LinkPreset::Emulated);
@@ -93,7 +105,9 @@ fn the_in_memory_board_predicts_the_busiest_emulated_node() {
         r.frame.loads.iter().map(|l| l.expect("every node reported its load").running).max().unwrap_or(0)
     };
     let memory = busiest(&render_sim(&s, &opts).expect("in-memory render"));
-    let qemu = render(&s, &opts, &Backend::Qemu { firmware }, Duration::from_secs(30)).expect("qemu render");
+    let qemu =
+        render(&s, &opts, &Backend::Qemu { board, firmware: firmware(board) }, Duration::from_secs(30))
+            .expect("qemu render");
     let emulated = busiest(&qemu);
     let gap = memory.abs_diff(emulated) as f64 / emulated as f64;
     eprintln!(
@@ -119,11 +133,11 @@ fn session(ptys: &[String], s: &Scene, opts: &RenderOptions) -> host_tool::rende
 #[test]
 fn a_new_host_session_starts_the_running_boards_over() {
     let _one = one_array();
-    let firmware = firmware();
+    let board = EmulatedBoard::Mps2An385;
     let s = scene();
     let opts = options(None);
     let memory = render_sim(&s, &opts).expect("in-memory render");
-    let qemu = QemuArray::launch(opts.array, &firmware).expect("emulators start");
+    let qemu = QemuArray::launch(board, opts.array, &firmware(board)).expect("emulators start");
     // Two host runs against the same boards: the second comes with a new
     // incarnation on every link, and each node drops the first run's state.
     for run in 0..2 {
@@ -139,10 +153,10 @@ fn a_new_host_session_starts_the_running_boards_over() {
 #[test]
 fn a_frozen_node_is_named_after_the_time_out() {
     let _one = one_array();
-    let firmware = firmware();
+    let board = EmulatedBoard::Mps2An385;
     let s = scene();
     let opts = options(None);
-    let qemu = QemuArray::launch(opts.array, &firmware).expect("emulators start");
+    let qemu = QemuArray::launch(board, opts.array, &firmware(board)).expect("emulators start");
     let names = (0..8).map(|i| format!("node {i}")).collect();
     // Long enough that eight emulators starving on two cores are not taken
     // for dead; far below the test's bound.

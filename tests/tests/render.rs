@@ -419,7 +419,7 @@ fn link_presets_change_time_not_the_image() {
         );
         assert!(m < ideal_busy.messaging, "{name}: retirements did not travel together ({m})");
     }
-    // 3 Mbaud at 100 MHz is 13 times slower a byte than the ideal link.
+    // 3.125 Mbaud at 100 MHz is 13 times slower a byte than the ideal link.
     assert!(irq.frame.makespan > ideal.frame.makespan);
     // Every byte a node sends a neighbour is a byte that neighbour takes in,
     // and each node took in the scene the host sent it.
