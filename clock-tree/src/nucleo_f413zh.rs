@@ -8,8 +8,9 @@
 //! The neighbour links cross both buses (a board's +X USART1 on APB2 meets
 //! its neighbour's -X USART2 on APB1), so both ends must divide to the same
 //! rate. 3 Mbaud cannot be: APB1 divides to 2.94 or 3.125 Mbaud, APB2 to
-//! 3.03. 3.125 Mbaud is exact on both (50 MHz / 16, 100 MHz / 32) and is
-//! what the links run at.
+//! 3.03. Both of those are exact on both buses (50 MHz / 17 and 100 MHz /
+//! 34; 50 MHz / 16 and 100 MHz / 32); the links run at the faster,
+//! 3.125 Mbaud.
 
 use crate::pll::{ClockPlan, Limits, PllSource};
 use crate::usart::Brr;

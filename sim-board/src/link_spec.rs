@@ -93,8 +93,9 @@ impl LinkSpec {
 pub enum LinkPreset {
     /// NUCLEO-F413ZH boards as the firmware configures them
     /// ([`clock_tree::nucleo_f413zh`]): the core at its full 100 MHz from the
-    /// PLL, neighbour USARTs at 3.125 Mbaud (the rate nearest 3 Mbaud that
-    /// both of its buses divide to exactly) with a byte interrupt, and the
+    /// PLL, neighbour USARTs at 3.125 Mbaud (the faster of the two rates
+    /// near 3 Mbaud that both of its buses divide to exactly) with a byte
+    /// interrupt, and the
     /// host link through the ST-LINK's virtual COM port at 921 600 baud (a
     /// rate its bridge takes; set `--host-baud` to yours).
     #[default]
