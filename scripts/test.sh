@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs every test of the project: formatting, lints, the firmware's thumb builds
 # and sizes, the no-std dependency check, the kernels' instruction counts on the
-# emulated Cortex-M3 (against the cost model), and the whole workspace's tests (among them a 2x2x2 array
+# emulated Cortex-M3 (against the cost model), and the whole workspace's tests (among them 2x2x2 and 3x3x3 arrays
 # of QEMU boards). Installs what it needs (thumb targets and llvm-tools through
 # rustup, qemu-system-arm through apt-get) or says how.
 set -euo pipefail
