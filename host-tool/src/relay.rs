@@ -230,3 +230,57 @@ fn accept(end: &End, deadline: Instant, timeout: Duration) -> Result<UnixStream,
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A pattern that shows order: byte `i` of a stream is `i * k mod 251`.
+    fn pattern(len: usize, k: usize) -> Vec<u8> {
+        (0..len).map(|i| (i * k % 251) as u8).collect()
+    }
+
+    #[test]
+    fn two_ends_that_write_at_once_without_reading_both_get_everything_in_order() {
+        let dir = tempfile::tempdir().expect("temporary directory");
+        let (pa, pb) = (dir.path().join("a.sock"), dir.path().join("b.sock"));
+        let mut relay = Relay::new();
+        let key = (0, Port::PosX, 1);
+        relay.end(key, 0, Port::PosX, UnixListener::bind(&pa).expect("bind a"));
+        relay.end(key, 1, Port::NegX, UnixListener::bind(&pb).expect("bind b"));
+        let (mut a, mut b) = (UnixStream::connect(&pa).expect("a"), UnixStream::connect(&pb).expect("b"));
+        relay.join(Duration::from_secs(5)).expect("both ends connect");
+
+        // Each end writes far more than the sockets between them hold
+        // (about 200 KiB each way) before it reads anything, as two blocked
+        // emulators would: joined directly, both writes would never finish.
+        const LEN: usize = 4 << 20;
+        let (from_a, from_b) = (pattern(LEN, 7), pattern(LEN, 13));
+        let writer = |mut s: UnixStream, data: Vec<u8>| std::thread::spawn(move || s.write_all(&data));
+        let wa = writer(a.try_clone().expect("clone"), from_a.clone());
+        let wb = writer(b.try_clone().expect("clone"), from_b.clone());
+        wa.join().expect("writer a").expect("a's write finishes before anyone reads");
+        wb.join().expect("writer b").expect("b's write finishes before anyone reads");
+
+        let (mut at_a, mut at_b) = (vec![0u8; LEN], vec![0u8; LEN]);
+        b.read_exact(&mut at_b).expect("b reads all a wrote");
+        a.read_exact(&mut at_a).expect("a reads all b wrote");
+        assert!(at_b == from_a, "a's bytes reached b in order");
+        assert!(at_a == from_b, "b's bytes reached a in order");
+        assert_eq!(relay.bytes_from(0)[Port::PosX.index()], LEN as u64);
+        assert_eq!(relay.bytes_from(1)[Port::NegX.index()], LEN as u64);
+    }
+
+    #[test]
+    fn an_end_that_never_connects_is_named() {
+        let dir = tempfile::tempdir().expect("temporary directory");
+        let (pa, pb) = (dir.path().join("a.sock"), dir.path().join("b.sock"));
+        let mut relay = Relay::new();
+        let key = (2, Port::PosY, 5);
+        relay.end(key, 2, Port::PosY, UnixListener::bind(&pa).expect("bind a"));
+        relay.end(key, 5, Port::NegY, UnixListener::bind(&pb).expect("bind b"));
+        let _a = UnixStream::connect(&pa).expect("a");
+        let err = relay.join(Duration::from_millis(200)).expect_err("b never connects");
+        assert!(err.to_string().contains("node 5") && err.to_string().contains("NegY"), "{err}");
+    }
+}
