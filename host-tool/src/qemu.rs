@@ -116,7 +116,7 @@ pub struct QemuArray {
     /// Host-side device of each node, in node order.
     pub ptys: Vec<String>,
     relay: Relay,
-    _sockets: tempfile::TempDir,
+    sockets: tempfile::TempDir,
 }
 
 impl QemuArray {
@@ -150,12 +150,11 @@ impl QemuArray {
             .prefix("sliding-qemu")
             .tempdir()
             .map_err(|e| HostError::Io(format!("socket directory: {e}")))?;
-        let mut relay = Relay::new();
         let mut qemu = QemuArray {
             children: Vec::new(),
             ptys: vec![String::new(); nodes],
             relay: Relay::new(),
-            _sockets: sockets,
+            sockets,
         };
         let (tx, rx) = mpsc::channel();
         for (id, serials) in plans.iter().enumerate() {
@@ -175,10 +174,10 @@ impl QemuArray {
                         cmd.args(["-serial", "null"]);
                     }
                     Serial::Neighbour(port) => {
-                        let path = qemu._sockets.path().join(format!("n{id}-{}.sock", port.index()));
+                        let path = qemu.sockets.path().join(format!("n{id}-{}.sock", port.index()));
                         let listener = UnixListener::bind(&path)
                             .map_err(|e| HostError::Io(format!("link socket {}: {e}", path.display())))?;
-                        relay.end(link_of(id, *port, array), id, *port, listener);
+                        qemu.relay.end(link_of(id, *port, array), id, *port, listener);
                         cmd.args(["-chardev", &format!("socket,id=n{i},path={}", path.display())]);
                         cmd.args(["-serial", &format!("chardev:n{i}")]);
                     }
@@ -201,8 +200,7 @@ impl QemuArray {
                 Err(_) => return Err(HostError::Node("QEMU did not report its pty within 20 s".into())),
             }
         }
-        relay.join(START_TIMEOUT)?;
-        qemu.relay = relay;
+        qemu.relay.join(START_TIMEOUT)?;
         Ok(qemu)
     }
 

@@ -240,14 +240,21 @@ mod tests {
         (0..len).map(|i| (i * k % 251) as u8).collect()
     }
 
+    /// A relay of the link `key` between its two listening ends, and their
+    /// socket paths (in `dir`).
+    fn link(dir: &std::path::Path, key: LinkKey) -> (Relay, [std::path::PathBuf; 2]) {
+        let (lo, port, hi) = key;
+        let paths = [dir.join("a.sock"), dir.join("b.sock")];
+        let mut relay = Relay::new();
+        relay.end(key, lo, port, UnixListener::bind(&paths[0]).expect("bind a"));
+        relay.end(key, hi, port.opposite(), UnixListener::bind(&paths[1]).expect("bind b"));
+        (relay, paths)
+    }
+
     #[test]
     fn two_ends_that_write_at_once_without_reading_both_get_everything_in_order() {
         let dir = tempfile::tempdir().expect("temporary directory");
-        let (pa, pb) = (dir.path().join("a.sock"), dir.path().join("b.sock"));
-        let mut relay = Relay::new();
-        let key = (0, Port::PosX, 1);
-        relay.end(key, 0, Port::PosX, UnixListener::bind(&pa).expect("bind a"));
-        relay.end(key, 1, Port::NegX, UnixListener::bind(&pb).expect("bind b"));
+        let (mut relay, [pa, pb]) = link(dir.path(), (0, Port::PosX, 1));
         let (mut a, mut b) = (UnixStream::connect(&pa).expect("a"), UnixStream::connect(&pb).expect("b"));
         relay.join(Duration::from_secs(5)).expect("both ends connect");
 
@@ -274,11 +281,7 @@ mod tests {
     #[test]
     fn an_end_that_never_connects_is_named() {
         let dir = tempfile::tempdir().expect("temporary directory");
-        let (pa, pb) = (dir.path().join("a.sock"), dir.path().join("b.sock"));
-        let mut relay = Relay::new();
-        let key = (2, Port::PosY, 5);
-        relay.end(key, 2, Port::PosY, UnixListener::bind(&pa).expect("bind a"));
-        relay.end(key, 5, Port::NegY, UnixListener::bind(&pb).expect("bind b"));
+        let (mut relay, [pa, _]) = link(dir.path(), (2, Port::PosY, 5));
         let _a = UnixStream::connect(&pa).expect("a");
         let err = relay.join(Duration::from_millis(200)).expect_err("b never connects");
         assert!(err.to_string().contains("node 5") && err.to_string().contains("NegY"), "{err}");
