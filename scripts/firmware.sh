@@ -33,6 +33,8 @@ check_size() {
 
 (cd firmware && cargo build --release --locked --bins)
 check_size mps2-an385 target/thumbv7m-none-eabi/release/node 128 64
+# A firmware that panics on purpose: the emulated tests check that its last words reach the host.
+cp target/thumbv7m-none-eabi/release/fault_check "$OUT/fault-check-mps2-an385.elf"
 
 for board in stm32f413:1536:320 netduinoplus2:1024:192; do
     IFS=: read -r name flash ram <<<"$board"
@@ -40,6 +42,11 @@ for board in stm32f413:1536:320 netduinoplus2:1024:192; do
         --target thumbv7em-none-eabihf)
     check_size "$name" target/thumbv7em-none-eabihf/release/node "$flash" "$ram"
 done
+# The real board logs over RTT: its image must carry the RTT control block and defmt's strings.
+grep -q _SEGGER_RTT "$OUT/node-stm32f413.elf" && "$SIZE" -A "$OUT/node-stm32f413.elf" | grep -q '^\.defmt' || {
+    echo "error: the stm32f413 image has no defmt log over RTT" >&2
+    exit 1
+}
 
 echo "kernels on the emulated Cortex-M3 (instructions, timed loops included):"
 KERNELS=$(timeout 300 qemu-system-arm -machine mps2-an385 -cpu cortex-m3 -nographic -icount shift=0 \

@@ -1,6 +1,7 @@
 //! Boards: UART drivers and clocks, one module per board.
 
 pub mod boot_count;
+pub mod identity;
 pub mod mmio;
 pub mod wake;
 

@@ -11,6 +11,9 @@
 pub mod board;
 pub mod capacity;
 pub mod clock;
+pub mod fault;
+pub mod lights;
+pub mod log;
 pub mod memcpy;
 pub mod run;
 pub mod tx_ring;

@@ -1,6 +1,7 @@
 //! The firmware's main loop: the same sans-IO node as in the simulator,
 //! polled with the board's clock over its UARTs.
 
+use embedded_hal::digital::OutputPin;
 use embedded_io::{Read, ReadReady, Write, WriteReady};
 use link_proto::{ErrorCode, ErrorReport, Message};
 use node_fw::Links;
@@ -9,6 +10,7 @@ use node_fw::wiring::index_of;
 
 use crate::capacity::{BoardLinks, BoardNode};
 use crate::clock::Clock;
+use crate::lights::{Activity, Lights};
 use crate::wires::Wires;
 
 /// Cycles without an acknowledgement after which a channel resends.
@@ -23,25 +25,67 @@ pub struct Idle {
     pub sleep: fn(),
 }
 
-/// Runs the node for ever, sleeping whenever a pass finds nothing to do.
-pub fn run<U, const N: usize>(
+/// Runs the node for ever, sleeping whenever a pass finds nothing to do;
+/// the lights show which.
+pub fn run<U, W, F, const N: usize>(
     node: &mut BoardNode,
     links: &mut BoardLinks,
     wires: &mut Wires<U, N>,
     clock: &mut impl Clock,
+    lights: &mut Lights<W, F>,
     idle: Idle,
 ) -> !
 where
     U: Read + Write + ReadReady + WriteReady,
+    W: OutputPin,
+    F: OutputPin,
 {
+    let mut told = Told::default();
     loop {
         (idle.clear)();
-        if !step(node, links, wires, clock.now()) {
+        let busy = step(node, links, wires, clock.now());
+        told.update(node);
+        lights.show(match (node.failed(), busy) {
+            (true, _) => Activity::Failed,
+            (false, true) => Activity::Running,
+            (false, false) => Activity::Waiting,
+        });
+        if !busy {
             // Nothing arrived, nothing was sent, the node did no work: only
             // a byte or the wake-up timer can change that.
             (idle.sleep)();
         }
     }
+}
+
+/// What the bring-up log has said (a real board's only).
+#[derive(Default)]
+struct Told {
+    #[cfg(feature = "stm32f413")]
+    peers: [Option<link_proto::BoardId>; 6],
+    #[cfg(feature = "stm32f413")]
+    failed: bool,
+}
+
+impl Told {
+    /// Logs what changed since the last pass.
+    #[cfg(feature = "stm32f413")]
+    fn update(&mut self, node: &BoardNode) {
+        for (port, (told, now)) in self.peers.iter_mut().zip(node.peers()).enumerate() {
+            if let Some(id) = now.filter(|_| *told != now) {
+                crate::log::peer(port, id);
+                *told = now;
+            }
+        }
+        if node.failed() && !self.failed {
+            crate::log::failed();
+            self.failed = true;
+        }
+    }
+
+    /// Emulated boards log nothing.
+    #[cfg(not(feature = "stm32f413"))]
+    fn update(&mut self, _node: &BoardNode) {}
 }
 
 /// One pass: bytes in, one node poll, bytes out. Returns whether anything

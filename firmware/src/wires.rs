@@ -27,9 +27,17 @@ pub struct Wires<U, const N: usize> {
 }
 
 impl<U: Read + Write + ReadReady + WriteReady, const N: usize> Wires<U, N> {
-    /// UARTs not yet mapped to neighbour ports (only the host's is used).
+    /// A board with a UART for every neighbour port serves them all from
+    /// the start, so that it learns who is at the end of each cable before it
+    /// knows its place; with fewer, the UARTs wait for the place.
     pub fn new(host: U, neighbours: [U; N]) -> Self {
-        Self { host, neighbours, map: [None; N], wired_for: None, tx: [const { TxRing::new() }; 7] }
+        let map = Self::fixed().unwrap_or([None; N]);
+        Self { host, neighbours, map, wired_for: None, tx: [const { TxRing::new() }; 7] }
+    }
+
+    /// UART `i` serving `Port::NEIGHBOURS[i]`, if the board has six.
+    fn fixed() -> Option<[Option<Port>; N]> {
+        (N >= Port::NEIGHBOURS.len()).then(|| core::array::from_fn(|i| Port::NEIGHBOURS.get(i).copied()))
     }
 
     /// Maps the neighbour UARTs for a node at `coord` of `array`; the error
@@ -39,8 +47,8 @@ impl<U: Read + Write + ReadReady + WriteReady, const N: usize> Wires<U, N> {
             return Ok(());
         }
         self.wired_for = Some((coord, array));
-        self.map = [None; N];
-        self.map = uart_ports::<N>(coord, array)?;
+        let placed = uart_ports::<N>(coord, array)?;
+        self.map = Self::fixed().unwrap_or(placed);
         Ok(())
     }
 

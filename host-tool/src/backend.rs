@@ -25,8 +25,10 @@ pub enum Backend {
     },
     /// Real boards, node `i` on serial device `i`.
     Serial {
-        /// Serial devices in node order.
+        /// Serial devices in node order, or in any order with `order_ports`.
         ports: Vec<String>,
+        /// Put the devices in array order by their cabling.
+        order_ports: bool,
     },
 }
 
@@ -45,26 +47,36 @@ pub fn render(
             // Check the scene before starting eight emulators.
             initial_partition(scene, opts, sim_board::SimNode::capacity())?;
             let qemu = QemuArray::launch(*board, opts.array, firmware)?;
-            let result = render_serial(scene, opts, &qemu.ptys, node_timeout);
+            let result = render_serial(scene, opts, &qemu.ptys, false, node_timeout);
+            let last_words = qemu.last_words();
             drop(qemu);
-            result
+            // A firmware that panicked or faulted said where, on its emulator's output.
+            result.map_err(|e| match last_words.as_slice() {
+                [] => e,
+                words => e.append(&format!("; the emulators said: {}", words.join(" / "))),
+            })
         }
-        Backend::Serial { ports } if ports.len() != nodes => Err(input(format!(
+        Backend::Serial { ports, .. } if ports.len() != nodes => Err(input(format!(
             "--ports lists {} devices; the {}x{}x{} array has {nodes} nodes",
             ports.len(),
             opts.array[0],
             opts.array[1],
             opts.array[2]
         ))),
-        Backend::Serial { ports } => render_serial(scene, opts, ports, node_timeout),
+        Backend::Serial { ports, order_ports } => {
+            render_serial(scene, opts, ports, *order_ports, node_timeout)
+        }
     }
 }
 
-/// Renders `scene` on boards behind serial devices `ports` (node order).
+/// Renders `scene` on boards behind serial devices `ports`: in node order,
+/// or put in it by their cabling with `order_ports`. The cabling is checked
+/// before anything is sent.
 pub fn render_serial(
     scene: &Scene,
     opts: &RenderOptions,
     ports: &[String],
+    order_ports: bool,
     node_timeout: Duration,
 ) -> Result<RenderResult, HostError> {
     let names = (0..opts.array.iter().map(|&n| usize::from(n)).product())
@@ -75,6 +87,11 @@ pub fn render_serial(
         .collect();
     let mut array = SerialArray::open(ports, names, node_timeout)?;
     array.connect()?;
+    if order_ports {
+        let ordered = array.order_by_cabling(opts.array)?;
+        eprintln!("devices in array order: --ports {}", ordered.join(","));
+    }
+    array.check_cabling(opts.array)?;
     // Fitted to what the boards can hold, known once they have said hello.
     let partition = initial_partition(scene, opts, array.capacity())?;
     check_frame(scene, opts, &partition, array.capacity())?;

@@ -30,6 +30,8 @@ pub enum HostError {
     Node(String),
     /// A node speaks another protocol version (exit 31).
     Version(String),
+    /// The boards are not cabled as the array needs (exit 32).
+    Cabling(String),
 }
 
 impl HostError {
@@ -48,12 +50,22 @@ impl HostError {
             HostError::Serial(_) => 21,
             HostError::Node(_) => 30,
             HostError::Version(_) => 31,
+            HostError::Cabling(_) => 32,
         }
     }
 
     /// The same kind of error, its message prefixed with `context: `.
     pub fn context(self, context: &str) -> HostError {
-        let wrap = |m: String| format!("{context}: {m}");
+        self.map_message(|m| format!("{context}: {m}"))
+    }
+
+    /// The same kind of error, `more` added to its message.
+    pub fn append(self, more: &str) -> HostError {
+        self.map_message(|m| format!("{m}{more}"))
+    }
+
+    /// The same kind of error with its message rewritten.
+    fn map_message(self, wrap: impl FnOnce(String) -> String) -> HostError {
         match self {
             HostError::Malformed(m) => HostError::Malformed(wrap(m)),
             HostError::NonFinite(m) => HostError::NonFinite(wrap(m)),
@@ -67,6 +79,7 @@ impl HostError {
             HostError::Serial(m) => HostError::Serial(wrap(m)),
             HostError::Node(m) => HostError::Node(wrap(m)),
             HostError::Version(m) => HostError::Version(wrap(m)),
+            HostError::Cabling(m) => HostError::Cabling(wrap(m)),
         }
     }
 
@@ -84,7 +97,8 @@ impl HostError {
             | HostError::Io(m)
             | HostError::Serial(m)
             | HostError::Node(m)
-            | HostError::Version(m) => m,
+            | HostError::Version(m)
+            | HostError::Cabling(m) => m,
         }
     }
 }

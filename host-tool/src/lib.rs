@@ -4,6 +4,8 @@
 //! An independent f64 renderer ([`mod@reference`]) checks the fixed-point image.
 
 pub mod backend;
+pub mod boards;
+pub mod cabling;
 pub mod camera;
 pub mod compare;
 pub mod cost_map;

@@ -32,6 +32,9 @@ struct Cli {
 enum Command {
     /// Render on an array of nodes (in memory, emulated or real); write the image, per-node loads and a summary.
     Render(Box<RenderArgs>),
+    /// List the boards on serial devices (or emulated ones) without rendering:
+    /// id, firmware and protocol version, capacities, clock, baud rates and cables.
+    Boards(BoardsArgs),
     /// Render the same scene with the independent f64 reference renderer.
     Reference(ReferenceArgs),
     /// Render with the fixed-point kernels and the f64 reference; print the comparison as JSON.
@@ -262,6 +265,26 @@ enum AxisChoice {
     Z,
 }
 
+#[derive(Args)]
+struct BoardsArgs {
+    /// Serial devices of the boards, comma- or space-separated, in any order.
+    #[arg(long, value_name = "DEV,DEV,...", value_delimiter = ',', num_args = 1.., required_unless_present = "emulate")]
+    ports: Vec<String>,
+    /// The array the boards should form: check their cables and print the
+    /// order to list the devices in for `render --ports`.
+    #[arg(long, value_name = "XxYxZ", value_parser = parse_triple)]
+    array: Option<[u16; 3]>,
+    /// List an emulated array of this board (one per node of --array) instead of --ports.
+    #[arg(long, value_enum, conflicts_with = "ports", requires = "array")]
+    emulate: Option<BoardChoice>,
+    /// Node firmware ELF for --emulate [default: the board's image from scripts/firmware.sh].
+    #[arg(long, value_name = "ELF", requires = "emulate")]
+    firmware: Option<PathBuf>,
+    /// Seconds a board may take to say hello.
+    #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
+    node_timeout: f64,
+}
+
 #[derive(Clone, Copy, ValueEnum)]
 enum BoardChoice {
     /// ARM's mps2-an385 (Cortex-M3, four neighbour UARTs): the small-MCU image.
@@ -299,9 +322,12 @@ struct RenderArgs {
     /// What runs the nodes.
     #[arg(long, value_enum, default_value = "sim")]
     backend: BackendChoice,
-    /// Serial devices of the nodes in node order (x fastest), comma-separated (--backend serial).
-    #[arg(long, value_name = "DEV,DEV,...", value_delimiter = ',')]
+    /// Serial devices of the nodes in node order (x fastest), comma- or space-separated (--backend serial).
+    #[arg(long, value_name = "DEV,DEV,...", value_delimiter = ',', num_args = 1..)]
     ports: Vec<String>,
+    /// Take --ports in any order and put them in array order by the boards' cabling.
+    #[arg(long)]
+    order_ports: bool,
     /// The board QEMU emulates for --backend qemu.
     #[arg(long, value_enum, default_value = "mps2-an385")]
     board: BoardChoice,
@@ -391,6 +417,7 @@ fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Render(args) => render(*args),
+        Command::Boards(args) => boards(args),
         Command::Reference(args) => reference_cmd(args),
         Command::Compare(args) => compare_cmd(args),
         Command::Bench(BenchCommand::Board(args)) => bench_board(args),
@@ -461,6 +488,27 @@ fn load_scene(args: &SceneArgs) -> Result<Scene, HostError> {
     Scene::random(count, seed, ratio, args.grid)
 }
 
+fn boards(args: BoardsArgs) -> Result<(), HostError> {
+    if !(args.node_timeout.is_finite() && args.node_timeout > 0.0 && args.node_timeout < 1e6) {
+        return Err(input(format!(
+            "--node-timeout must be a positive number of seconds, got {}",
+            args.node_timeout
+        )));
+    }
+    let timeout = std::time::Duration::from_secs_f64(args.node_timeout);
+    let listing = match (args.emulate, args.array) {
+        (Some(board), Some(array)) => {
+            let board = EmulatedBoard::from(board);
+            let firmware = args.firmware.unwrap_or_else(|| board.default_firmware());
+            let qemu = host_tool::qemu::QemuArray::launch(board, array, &firmware)?;
+            host_tool::boards::list(&qemu.ptys, Some(array), timeout)?
+        }
+        _ => host_tool::boards::list(&args.ports, args.array, timeout)?,
+    };
+    print!("{listing}");
+    Ok(())
+}
+
 fn render(args: RenderArgs) -> Result<(), HostError> {
     let scene = load_scene(&args.scene)?;
     let mut opts = RenderOptions::new(args.array);
@@ -508,7 +556,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
             let firmware = args.firmware.clone().unwrap_or_else(|| board.default_firmware());
             Backend::Qemu { board, firmware }
         }
-        BackendChoice::Serial => Backend::Serial { ports: args.ports.clone() },
+        BackendChoice::Serial => Backend::Serial { ports: args.ports.clone(), order_ports: args.order_ports },
     };
     if backend != Backend::Sim && (args.faults.is_some() || args.restart_node.is_some()) {
         return Err(input(
@@ -521,8 +569,8 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
              (--backend sim)",
         ));
     }
-    if !matches!(backend, Backend::Serial { .. }) && !args.ports.is_empty() {
-        return Err(input("--ports is for --backend serial"));
+    if !matches!(backend, Backend::Serial { .. }) && (!args.ports.is_empty() || args.order_ports) {
+        return Err(input("--ports and --order-ports are for --backend serial"));
     }
     if !(args.node_timeout.is_finite() && args.node_timeout > 0.0 && args.node_timeout < 1e6) {
         return Err(input(format!(

@@ -16,9 +16,10 @@ use std::io::{BufRead, BufReader};
 use std::os::unix::net::UnixListener;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
+use std::sync::{Arc, Mutex, mpsc};
 use std::time::Duration;
 
+use link_proto::BoardId;
 use node_fw::Port;
 use node_fw::wiring::{coord_of, index_of, uart_ports};
 
@@ -101,6 +102,26 @@ impl EmulatedBoard {
         }
     }
 
+    /// Where the firmware looks for the id the host gives the board: the
+    /// last 16 bytes of the RAM its memory map claims (see the firmware's
+    /// `board/identity.rs`).
+    const fn id_cell(self) -> u32 {
+        match self {
+            EmulatedBoard::Mps2An385 => 0x2000_FFF0,
+            EmulatedBoard::Netduinoplus2 => 0x2002_FFF0,
+        }
+    }
+
+    /// QEMU's log options that record writes to the board's user LEDs: the
+    /// mps2's FPGA register trace; the STM32 model's GPIO is an unimplemented
+    /// device, whose writes QEMU logs as such.
+    fn light_log_args(self) -> &'static [&'static str] {
+        match self {
+            EmulatedBoard::Mps2An385 => &["-trace", "mps2_fpgaio_write"],
+            EmulatedBoard::Netduinoplus2 => &["-d", "unimp"],
+        }
+    }
+
     fn machine_args(self) -> &'static [&'static str] {
         match self {
             EmulatedBoard::Mps2An385 => &["-machine", "mps2-an385", "-cpu", "cortex-m3"],
@@ -109,12 +130,34 @@ impl EmulatedBoard {
     }
 }
 
+/// Marks the id written into an emulated board's id cell (the firmware's
+/// `identity::EMULATED_MARK`).
+const ID_MARK: u64 = 0x1D5E_7B0A;
+
+/// Two cable ends plugged into each other's sockets: a mistake made on
+/// purpose, to test the cabling check. `(node, port)` names an end.
+pub type Crossing = ((usize, Port), (usize, Port));
+
+/// How to launch an array; the default is correctly cabled and logs nothing.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Launch<'a> {
+    /// Pairs of cable ends plugged into each other's sockets.
+    pub crossed: &'a [Crossing],
+    /// Log every write to the boards' user LEDs ([`QemuArray::log`]).
+    pub log_lights: bool,
+}
+
 /// Running QEMU instances, the ptys of their host UARTs and the relay
 /// joining their neighbour UARTs.
 pub struct QemuArray {
     children: Vec<Child>,
+    /// What each emulator printed besides its pty (the firmware's panic or
+    /// fault report comes through semihosting).
+    said: Vec<Arc<Mutex<Vec<String>>>>,
     /// Host-side device of each node, in node order.
     pub ptys: Vec<String>,
+    /// The id each node's board was given, in node order.
+    pub ids: Vec<BoardId>,
     relay: Relay,
     sockets: tempfile::TempDir,
 }
@@ -122,6 +165,17 @@ pub struct QemuArray {
 impl QemuArray {
     /// Starts one `board` instance per node of `array` running `firmware`.
     pub fn launch(board: EmulatedBoard, array: [u16; 3], firmware: &Path) -> Result<Self, HostError> {
+        Self::launch_with(board, array, firmware, Launch::default())
+    }
+
+    /// [`Self::launch`], cabled and logged as `how` says.
+    pub fn launch_with(
+        board: EmulatedBoard,
+        array: [u16; 3],
+        firmware: &Path,
+        how: Launch<'_>,
+    ) -> Result<Self, HostError> {
+        let crossed = how.crossed;
         if !firmware.is_file() {
             return Err(HostError::Io(format!(
                 "firmware {} not found; build it with scripts/firmware.sh or give --firmware",
@@ -129,6 +183,10 @@ impl QemuArray {
             )));
         }
         let nodes: usize = array.iter().map(|&n| usize::from(n)).product();
+        let salt = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos())
+            ^ std::process::id().rotate_left(13);
         let mut plans = Vec::with_capacity(nodes);
         for id in 0..nodes {
             let coord = coord_of(id, array);
@@ -152,9 +210,17 @@ impl QemuArray {
             .map_err(|e| HostError::Io(format!("socket directory: {e}")))?;
         let mut qemu = QemuArray {
             children: Vec::new(),
+            said: (0..nodes).map(|_| Arc::new(Mutex::new(Vec::new()))).collect(),
             ptys: vec![String::new(); nodes],
+            ids: (0..nodes).map(|i| fresh_id(i, salt)).collect(),
             relay: Relay::new(),
             sockets,
+        };
+        let cable = |end: (usize, Port)| {
+            let other =
+                crossed.iter().find_map(|&(a, b)| (a == end).then_some(b).or((b == end).then_some(a)));
+            let (node, port) = other.unwrap_or(end);
+            link_of(node, port, array)
         };
         let (tx, rx) = mpsc::channel();
         for (id, serials) in plans.iter().enumerate() {
@@ -177,11 +243,17 @@ impl QemuArray {
                         let path = qemu.sockets.path().join(format!("n{id}-{}.sock", port.index()));
                         let listener = UnixListener::bind(&path)
                             .map_err(|e| HostError::Io(format!("link socket {}: {e}", path.display())))?;
-                        qemu.relay.end(link_of(id, *port, array), id, *port, listener);
+                        qemu.relay.end(cable((id, *port)), id, *port, listener);
                         cmd.args(["-chardev", &format!("socket,id=n{i},path={}", path.display())]);
                         cmd.args(["-serial", &format!("chardev:n{i}")]);
                     }
                 }
+            }
+            let cell = board.id_cell();
+            let value = (ID_MARK << 32) | u64::from(qemu.ids[id].0[0]);
+            cmd.args(["-device", &format!("loader,addr={cell:#x},data={value:#x},data-len=8")]);
+            if how.log_lights {
+                cmd.args(board.light_log_args()).arg("-D").arg(qemu.log_path(id));
             }
             cmd.arg("-kernel").arg(firmware);
             cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
@@ -190,7 +262,7 @@ impl QemuArray {
                     "cannot start {QEMU}: {e}; install it (Debian: apt-get install qemu-system-arm)"
                 ))
             })?;
-            watch_for_pty(id, host_label, &mut child, tx.clone());
+            watch_for_pty(id, host_label, &mut child, tx.clone(), qemu.said[id].clone());
             qemu.children.push(child);
         }
         for _ in 0..nodes {
@@ -204,6 +276,27 @@ impl QemuArray {
         Ok(qemu)
     }
 
+    /// Where node `node`'s emulator logs ([`Launch::log_lights`]).
+    fn log_path(&self, node: usize) -> PathBuf {
+        self.sockets.path().join(format!("n{node}.log"))
+    }
+
+    /// Node `node`'s emulator log so far (empty unless launched with
+    /// [`Launch::log_lights`]).
+    pub fn log(&self, node: usize) -> String {
+        std::fs::read_to_string(self.log_path(node)).unwrap_or_default()
+    }
+
+    /// What the emulators printed besides their ptys, each line naming its
+    /// node: a panicking or faulting firmware's last words.
+    pub fn last_words(&self) -> Vec<String> {
+        let lines = |(i, said): (usize, &Arc<Mutex<Vec<String>>>)| {
+            let said = said.lock().map(|s| s.clone()).unwrap_or_default();
+            said.into_iter().map(move |line| format!("node {i}: {line}"))
+        };
+        self.said.iter().enumerate().flat_map(lines).collect()
+    }
+
     /// Process id of node `node`'s emulator (to stop or freeze it in tests).
     pub fn pid(&self, node: usize) -> Option<u32> {
         self.children.get(node).map(Child::id)
@@ -214,6 +307,14 @@ impl QemuArray {
     pub fn bytes_relayed(&self, node: usize) -> [u64; 7] {
         self.relay.bytes_from(node)
     }
+}
+
+/// A board id for node `i`: the launch's salt above, the node's number plus
+/// one below, so the ids differ from node to node and from launch to launch
+/// and are never zero.
+fn fresh_id(i: usize, salt: u32) -> BoardId {
+    let high = salt.wrapping_mul(0x9E37_79B9) & 0xFFFF_0000;
+    BoardId([high | ((i as u32 + 1) & 0xFFFF), 0, 0])
 }
 
 /// The link from node `id` through `port`: (lower node, its port, higher
@@ -238,12 +339,13 @@ impl Drop for QemuArray {
 }
 
 /// Reads QEMU's "char device redirected to /dev/pts/N (label serialK)" line
-/// for the host UART's label.
+/// for the host UART's label; keeps every other line in `said`.
 fn watch_for_pty(
     id: usize,
     label: String,
     child: &mut Child,
     tx: mpsc::Sender<(usize, Result<String, String>)>,
+    said: Arc<Mutex<Vec<String>>>,
 ) {
     let streams: Vec<Box<dyn std::io::Read + Send>> = [
         child.stderr.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>),
@@ -254,9 +356,10 @@ fn watch_for_pty(
     .collect();
     for stream in streams {
         let tx = tx.clone();
+        let said = said.clone();
         let label = format!("(label {label})");
         std::thread::spawn(move || {
-            let mut said = Vec::new();
+            let mut mine = Vec::new();
             for line in BufReader::new(stream).lines().map_while(Result::ok) {
                 if let Some(rest) = line.split("redirected to ").nth(1)
                     && line.contains(&label)
@@ -264,11 +367,14 @@ fn watch_for_pty(
                     let pty = rest.split_whitespace().next().unwrap_or_default().to_string();
                     let _ = tx.send((id, Ok(pty)));
                 } else {
-                    said.push(line);
+                    if let Ok(mut said) = said.lock() {
+                        said.push(line.clone());
+                    }
+                    mine.push(line);
                 }
             }
-            if !said.is_empty() {
-                let _ = tx.send((id, Err(format!("exited: {}", said.join(" / ")))));
+            if !mine.is_empty() {
+                let _ = tx.send((id, Err(format!("exited: {}", mine.join(" / ")))));
             }
         });
     }

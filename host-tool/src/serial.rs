@@ -13,11 +13,12 @@ use std::collections::VecDeque;
 use std::io::{ErrorKind, Read, Write};
 use std::time::{Duration, Instant};
 
-use link_proto::{Capacity, Hello, Message, PROTOCOL_VERSION};
+use link_proto::{BoardId, BoardInfo, Capacity, Hello, Message, PROTOCOL_VERSION};
 use node_fw::reliable::{Channel, ChannelStats};
 use serialport::SerialPort;
 use sim_board::{HostEndpoint, RunStats};
 
+use crate::cabling::{self, Reported};
 use crate::error::HostError;
 use crate::render::Array;
 
@@ -32,8 +33,11 @@ const HEARTBEAT: Duration = Duration::from_millis(500);
 /// Node time-outs without a retired ray, or another message that shows the
 /// frame moving, after which a run that every node still answers fails.
 const STALL_TIMEOUTS: u32 = 3;
-/// Baud rate for real devices (ptys ignore it).
-pub const BAUD: u32 = 115_200;
+/// How long the boards get to report who is at the end of each cable.
+const CABLING_WAIT: Duration = Duration::from_secs(5);
+/// Baud rate for real devices: the NUCLEO-F413ZH image's host link (ptys
+/// ignore it).
+pub const BAUD: u32 = clock_tree::nucleo_f413zh::HOST_BAUD;
 
 /// One node's serial link.
 struct Link {
@@ -43,6 +47,8 @@ struct Link {
     /// Messages waiting for room in the channel's window.
     outbox: VecDeque<Message>,
     hello: Option<Hello>,
+    /// The board at each neighbour port of this link's board, as it told us.
+    peers: [Option<BoardId>; 6],
     bytes_sent: u64,
     /// Frames written into the device only in part or not yet (never blocks).
     unsent: VecDeque<u8>,
@@ -84,24 +90,130 @@ impl SerialArray {
                     self.timeout
                 )));
             }
-            let mut got = Vec::new();
-            self.pump(&mut |node, _, msg| got.push((node, msg)))?;
-            for (node, msg) in got {
-                if let Message::Hello(h) = &msg {
-                    if h.version != PROTOCOL_VERSION {
-                        return Err(HostError::Version(format!(
-                            "{} on {} speaks protocol version {}, the host {PROTOCOL_VERSION}",
-                            self.name(usize::from(node)),
-                            self.links[usize::from(node)].name,
-                            h.version
-                        )));
-                    }
-                    self.links[usize::from(node)].hello = Some(*h);
+            self.pump_and_note()?;
+        }
+        Ok(())
+    }
+
+    /// One pass of [`Self::pump`] before a run: hellos and peer notes are
+    /// noted, everything is kept for the run's host.
+    fn pump_and_note(&mut self) -> Result<bool, HostError> {
+        let mut got = Vec::new();
+        let moved = self.pump(&mut |node, _, msg| got.push((node, msg)))?;
+        for (node, msg) in got {
+            let i = usize::from(node);
+            match &msg {
+                Message::Hello(h) if h.version != PROTOCOL_VERSION => {
+                    return Err(HostError::Version(format!(
+                        "{} on {} speaks protocol version {}, the host {PROTOCOL_VERSION}",
+                        self.name(i),
+                        self.links[i].name,
+                        h.version
+                    )));
                 }
-                self.greeted.push((node, msg));
+                Message::Hello(h) => self.links[i].hello = Some(*h),
+                Message::Peer(note) => {
+                    if let Some(peer) = self.links[i].peers.get_mut(usize::from(note.port)) {
+                        *peer = Some(note.board);
+                    }
+                }
+                _ => {}
+            }
+            self.greeted.push((node, msg));
+        }
+        Ok(moved)
+    }
+
+    /// What each device's board has told about itself and its cables.
+    pub fn reported(&self) -> Vec<Reported> {
+        self.links
+            .iter()
+            .map(|l| Reported {
+                device: l.name.clone(),
+                board: l.hello.map_or(BoardInfo::HOST, |h| h.board),
+                peers: l.peers,
+            })
+            .collect()
+    }
+
+    /// The hellos, in device order (after [`Self::connect`]).
+    pub fn hellos(&self) -> Vec<Option<Hello>> {
+        self.links.iter().map(|l| l.hello).collect()
+    }
+
+    /// Moves messages until `enough` holds of what the boards reported, or
+    /// `wait` has passed.
+    pub fn gather(&mut self, wait: Duration, enough: impl Fn(&[Reported]) -> bool) -> Result<(), HostError> {
+        let deadline = Instant::now() + wait;
+        while !enough(&self.reported()) && Instant::now() < deadline {
+            if !self.pump_and_note()? {
+                std::thread::sleep(Duration::from_millis(1));
             }
         }
         Ok(())
+    }
+
+    /// Whether every board serves fixed ports, so its cables can be checked
+    /// before it knows its place ([`link_proto::BoardKind::fixed_ports`]).
+    fn fixed_ports(&self) -> bool {
+        self.links.iter().all(|l| l.hello.is_some_and(|h| h.board.kind.fixed_ports()))
+    }
+
+    /// Checks that node `i`'s board, on device `i`, is cabled to its
+    /// neighbours in `array`; the error names a crossed, missing or swapped
+    /// cable, or says in which order the devices are cabled. Boards that wire
+    /// their UARTs from their place in the array (mps2-an385) pass unchecked.
+    pub fn check_cabling(&mut self, array: [u16; 3]) -> Result<(), HostError> {
+        if !self.fixed_ports() {
+            return Ok(());
+        }
+        if let Some(l) = self.links.iter().find(|l| !l.hello.is_some_and(|h| h.board.id.is_known())) {
+            eprintln!("warning: the board on {} has no unique id, so the cables go unchecked", l.name);
+            return Ok(());
+        }
+        self.gather(CABLING_WAIT, |r| cabling::complete(r, array))?;
+        let reported = self.reported();
+        let faults = cabling::check(&reported, array);
+        let Some(first) = faults.first() else { return Ok(()) };
+        if let Ok(order) = cabling::order(&reported, array) {
+            let devices: Vec<&str> = order.iter().map(|&d| reported[d].device.as_str()).collect();
+            return Err(HostError::Cabling(format!(
+                "the boards are cabled as a {}x{}x{} array, but --ports lists them in another order; \
+                 in array order: --ports {} (or add --order-ports)",
+                array[0],
+                array[1],
+                array[2],
+                devices.join(",")
+            )));
+        }
+        let more = match faults.len() {
+            1 => String::new(),
+            n => format!(" (and {} more)", n - 1),
+        };
+        Err(HostError::Cabling(format!("{}{more}", cabling::describe(first, &reported, array))))
+    }
+
+    /// Puts the devices in array order, read from the cabling; returns them
+    /// in that order.
+    pub fn order_by_cabling(&mut self, array: [u16; 3]) -> Result<Vec<String>, HostError> {
+        if !self.fixed_ports() {
+            return Err(HostError::Cabling(
+                "these boards map their UARTs from their place in the array, so their cables cannot be \
+                 read before it: list --ports in array order"
+                    .into(),
+            ));
+        }
+        self.gather(CABLING_WAIT, |r| cabling::order(r, array).is_ok())?;
+        let order = cabling::order(&self.reported(), array)
+            .map_err(|why| HostError::Cabling(format!("no array order fits the cabling: {why}")))?;
+        let mut links: Vec<Option<Link>> = std::mem::take(&mut self.links).into_iter().map(Some).collect();
+        self.links = order.iter().filter_map(|&d| links.get_mut(d).and_then(Option::take)).collect();
+        // Messages already taken belong to the devices' new places.
+        let place = |d: u16| order.iter().position(|&o| o == usize::from(d)).map_or(d, |p| p as u16);
+        for (node, _) in &mut self.greeted {
+            *node = place(*node);
+        }
+        Ok(self.links.iter().map(|l| l.name.clone()).collect())
     }
 
     /// One pass over the devices: read, deliver (with the host's time in
@@ -276,6 +388,7 @@ fn host_hello() -> Message {
         version: PROTOCOL_VERSION,
         node: u16::MAX,
         capacity: Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 },
+        board: BoardInfo::HOST,
     })
 }
 
@@ -299,6 +412,7 @@ fn open_link(path: &str) -> Result<Link, HostError> {
         channel,
         outbox: VecDeque::new(),
         hello: None,
+        peers: [None; 6],
         bytes_sent: 0,
         unsent: VecDeque::new(),
     })

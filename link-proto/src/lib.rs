@@ -13,15 +13,17 @@
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
+pub mod board;
 pub mod cobs;
 pub mod frame;
 pub mod message;
 pub mod ray_wire;
 pub mod retirements;
 
+pub use board::{BoardId, BoardInfo, BoardKind, ClockSource, FirmwareVersion, PeerNote};
 pub use frame::{DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_PAYLOAD_LEN, encode_frame};
 pub use message::*;
 
 /// Version of the wire protocol; nodes and host exchange it in [`Hello`].
 /// Bump it whenever a message changes shape (postcard carries no field names).
-pub const PROTOCOL_VERSION: u16 = 9;
+pub const PROTOCOL_VERSION: u16 = 10;

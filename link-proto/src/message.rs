@@ -11,6 +11,7 @@
 use postcard::experimental::max_size::MaxSize;
 use serde::{Deserialize, Serialize};
 
+use crate::board::{BoardInfo, PeerNote};
 pub use crate::retirements::{Retire, Retirements};
 
 /// One frame on a link: a per-link sequence number, the message it carries,
@@ -99,6 +100,9 @@ pub enum Message {
     /// slot it set aside and answers nothing; the sender forgets it once the
     /// link has taken it.
     GrantedRay(RayMsg),
+    /// Node to host: the board at the end of one neighbour link, learnt from
+    /// its hello (again for every new host session).
+    Peer(PeerNote),
 }
 
 impl Message {
@@ -165,15 +169,20 @@ pub struct RayReply {
     pub accepted: bool,
 }
 
-/// Version handshake and the capacities a node was built with.
+/// Version handshake: who the sender is and what it was built with. Sent to
+/// the host, and by nodes on every neighbour link too, so each learns which
+/// board its cables reach.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
 pub struct Hello {
-    /// [`crate::PROTOCOL_VERSION`] of the sender.
+    /// [`crate::PROTOCOL_VERSION`] of the sender. First, so that a peer of
+    /// any version can read it.
     pub version: u16,
     /// Sender's node index (row-major over the array), or `u16::MAX` for the host.
     pub node: u16,
     /// Capacities compiled into the sender (zero for the host).
     pub capacity: Capacity,
+    /// The board the sender runs on.
+    pub board: BoardInfo,
 }
 
 /// Storage a node was built with; the host checks a scene against it.

@@ -79,13 +79,16 @@ fn arb_message() -> impl Strategy<Value = Message> {
     let camera = (any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[i32; 3]>())
         .prop_map(|(eye, corner, du, dv)| CameraMsg { eye, corner, du, dv });
     prop_oneof![
-        (any::<u16>(), any::<u16>(), any::<(u32, u32, u32, u16)>()).prop_map(|(version, node, c)| {
-            Message::Hello(Hello {
-                version,
-                node,
-                capacity: Capacity { spheres: c.0, refs: c.1, cubes: c.2, rays: c.3 },
-            })
-        }),
+        (any::<u16>(), any::<u16>(), any::<(u32, u32, u32, u16)>(), arb_board()).prop_map(
+            |(version, node, c, board)| {
+                Message::Hello(Hello {
+                    version,
+                    node,
+                    capacity: Capacity { spheres: c.0, refs: c.1, cubes: c.2, rays: c.3 },
+                    board,
+                })
+            }
+        ),
         (any::<[u16; 3]>(), any::<[u16; 3]>(), any::<[u16; 3]>(), any::<u8>()).prop_map(
             |(grid, ambient, background, max_depth)| Message::SceneBegin(SceneHeader {
                 grid,
@@ -185,7 +188,37 @@ fn arb_message() -> impl Strategy<Value = Message> {
         Just(Message::Space),
         (any::<u32>(), any::<u16>())
             .prop_map(|(interval, boundary)| Message::SlideRequest(SlideOffer { interval, boundary })),
+        (any::<u8>(), any::<[u32; 3]>())
+            .prop_map(|(port, id)| Message::Peer(PeerNote { port, board: BoardId(id) })),
     ]
+}
+
+/// Any board a hello can describe.
+fn arb_board() -> impl Strategy<Value = BoardInfo> {
+    let kind = prop_oneof![
+        Just(BoardKind::Host),
+        Just(BoardKind::Simulated),
+        Just(BoardKind::Mps2An385),
+        Just(BoardKind::Netduinoplus2),
+        Just(BoardKind::NucleoF413zh),
+    ];
+    let source = prop_oneof![
+        Just(ClockSource::PllFromExternal),
+        Just(ClockSource::PllFromInternal),
+        Just(ClockSource::Reset),
+        Just(ClockSource::Virtual),
+    ];
+    (any::<[u32; 3]>(), kind, any::<[u8; 3]>(), any::<[u32; 3]>(), source).prop_map(
+        |(id, kind, [major, minor, patch], [clock_hz, link_baud, host_baud], clock_source)| BoardInfo {
+            id: BoardId(id),
+            kind,
+            firmware: FirmwareVersion { major, minor, patch },
+            clock_hz,
+            clock_source,
+            link_baud,
+            host_baud,
+        },
+    )
 }
 
 fn arb_frame() -> impl Strategy<Value = Frame> {

@@ -20,6 +20,8 @@ pub struct FramedLinks<const W: usize, const Q: usize> {
     inbox: [Deque<Message, Q>; 7],
     /// Where frames are encoded on their way out, one for all channels.
     scratch: [u8; MAX_FRAME_LEN],
+    /// Ports a cable may be plugged into (all, unless the owner knows better).
+    cabled: [bool; 7],
 }
 
 impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
@@ -35,7 +37,13 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
             Channel::new(t),
             Channel::new(t),
         ];
-        Self { channels, inbox: [const { Deque::new() }; 7], scratch: [0; MAX_FRAME_LEN] }
+        Self { channels, inbox: [const { Deque::new() }; 7], scratch: [0; MAX_FRAME_LEN], cabled: [true; 7] }
+    }
+
+    /// Tells which ports have a cable (port order), where the owner knows:
+    /// the node says no hello on the others ([`Links::cabled`]).
+    pub fn set_cabled(&mut self, cabled: [bool; 7]) {
+        self.cabled = cabled;
     }
 
     /// Sets the incarnation every channel announces: pick a new one on every
@@ -93,6 +101,10 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
 }
 
 impl<const W: usize, const Q: usize> Links for FramedLinks<W, Q> {
+    fn cabled(&self, port: Port) -> bool {
+        self.cabled.get(port.index()).copied().unwrap_or(false)
+    }
+
     fn recv(&mut self, port: Port) -> Option<Message> {
         self.inbox.get_mut(port.index())?.pop_front()
     }

@@ -88,4 +88,11 @@ pub trait Links {
     fn peer_restarted(&mut self) -> Option<Port> {
         None
     }
+    /// Whether a cable may be plugged in at `port`. The node says its
+    /// neighbour hello only where one is; links that cannot tell a missing
+    /// cable from a silent peer, such as framed UARTs, say yes, and the hello
+    /// waits in the channel for a peer that may never come.
+    fn cabled(&self, _port: Port) -> bool {
+        true
+    }
 }

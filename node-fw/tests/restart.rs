@@ -1,7 +1,9 @@
 //! Restarts seen through framed links: a new host session makes a node start
 //! over and say hello again; a restarted neighbour is reported to the host.
 
-use link_proto::{Assign, Boundaries, Capacity, ErrorCode, Hello, Message, PROTOCOL_VERSION, SceneHeader};
+use link_proto::{
+    Assign, BoardInfo, Boundaries, Capacity, ErrorCode, Hello, Message, PROTOCOL_VERSION, SceneHeader,
+};
 use node_fw::framed::FramedLinks;
 use node_fw::node::Node;
 use node_fw::reliable::Channel;
@@ -53,7 +55,7 @@ fn run(
 
 fn hello() -> Message {
     let capacity = Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 };
-    Message::Hello(Hello { version: PROTOCOL_VERSION, node: u16::MAX, capacity })
+    Message::Hello(Hello { version: PROTOCOL_VERSION, node: u16::MAX, capacity, board: BoardInfo::HOST })
 }
 
 fn assign() -> Message {

@@ -4,7 +4,7 @@ use std::fmt;
 
 use std::collections::{BTreeMap, VecDeque};
 
-use link_proto::Message;
+use link_proto::{BoardId, BoardInfo, BoardKind, ClockSource, Message};
 use node_fw::framed::FramedLinks;
 use node_fw::reliable::{Channel, ChannelStats};
 use node_fw::{Node, Port};
@@ -173,6 +173,31 @@ fn boxed_node(id: usize) -> Box<SimNode> {
     Box::new(SimNode::new(id as u16))
 }
 
+/// A node's reliable channels, saying hello only where it has neighbours.
+fn framed_links(config: &SimConfig, wired: [bool; 7]) -> Box<SimFramed> {
+    let mut links = Box::new(SimFramed::new(channel_timeout(config)));
+    links.set_cabled(wired);
+    links
+}
+
+/// The id of the in-memory board's node `id`: its index plus one (zero is no id).
+pub fn board_id(id: usize) -> BoardId {
+    BoardId([id as u32 + 1, 0, 0])
+}
+
+/// What the in-memory board's node `id` says it runs on.
+fn board_info(id: usize) -> BoardInfo {
+    BoardInfo {
+        id: board_id(id),
+        kind: BoardKind::Simulated,
+        firmware: node_fw::node::NODE_FW_VERSION,
+        clock_hz: 0,
+        clock_source: ClockSource::Virtual,
+        link_baud: 0,
+        host_baud: 0,
+    }
+}
+
 /// X x Y x Z nodes running the node firmware, wired to their face neighbours.
 pub struct Board {
     config: SimConfig,
@@ -215,14 +240,16 @@ impl Board {
                 *w = nb.is_some();
             }
             neighbours.push(n);
+            let mut node = nodes.next().unwrap_or_else(|| boxed_node(id));
+            node.set_board(board_info(id));
             slots.push(Slot {
-                node: nodes.next().unwrap_or_else(|| boxed_node(id)),
+                node,
                 clock: 0,
                 busy: Busy::default(),
                 ports: Default::default(),
                 wired,
                 miswired: None,
-                framed: config.faults.map(|_| Box::new(SimFramed::new(channel_timeout(&config)))),
+                framed: config.faults.map(|_| framed_links(&config, wired)),
                 rng: std::array::from_fn(|p| FaultRng::new(config.faults.map_or(0, |f| f.seed), id, p)),
             });
         }
@@ -464,12 +491,13 @@ impl Board {
             return;
         }
         self.restarted = true;
-        if let Some(fresh) = build_nodes(i, 1).pop() {
+        if let Some(mut fresh) = build_nodes(i, 1).pop() {
+            fresh.set_board(board_info(i));
             self.slots[i].node = fresh;
         }
         if self.slots[i].framed.is_some() {
             // A new incarnation, as a board's boot counter would give it.
-            let mut links = Box::new(SimFramed::new(channel_timeout(&self.config)));
+            let mut links = framed_links(&self.config, self.slots[i].wired);
             links.set_incarnation(1);
             self.slots[i].framed = Some(links);
         }
@@ -532,7 +560,8 @@ pub fn progresses(msg: &Message) -> bool {
     match msg {
         Message::Load(l) => l.interval == node_fw::node::FINAL_INTERVAL,
         // Boundaries may slide for ever while rays are stuck: not progress.
-        Message::SlideNote(_) | Message::SlideReply(_) => false,
+        // Nor is news of the cables.
+        Message::SlideNote(_) | Message::SlideReply(_) | Message::Peer(_) => false,
         _ => true,
     }
 }

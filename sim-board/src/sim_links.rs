@@ -75,6 +75,10 @@ impl Links for SimLinks<'_> {
         }
     }
 
+    fn cabled(&self, port: Port) -> bool {
+        self.wired.get(port.index()).copied().unwrap_or(false)
+    }
+
     fn try_send(&mut self, port: Port, msg: Message) -> Result<(), Message> {
         if !self.wired.get(port.index()).copied().unwrap_or(false) {
             self.miswired = Some(port);

@@ -11,11 +11,12 @@ use std::sync::{Mutex, MutexGuard};
 use std::time::Duration;
 
 use host_tool::backend::{Backend, render};
-use host_tool::qemu::{EmulatedBoard, QEMU, QemuArray};
+use host_tool::qemu::{EmulatedBoard, Launch, QEMU, QemuArray};
 use host_tool::render::{Array, RenderOptions, check_frame, initial_partition, render_on, render_sim};
 use host_tool::scene::Scene;
 use host_tool::serial::SerialArray;
 use link_proto::{Balance, SlidePolicy};
+use node_fw::Port;
 
 /// One QEMU array at a time: eight emulators already fill both cores, and a
 /// test's node time-out must not fire because another test's array is busy.
@@ -193,4 +194,129 @@ fn a_frozen_node_is_named_after_the_time_out() {
     assert_eq!(err.exit_code(), 30, "{err}");
     assert!(err.to_string().contains("node 5") && err.to_string().contains("stopped answering"), "{err}");
     assert!(started.elapsed() < Duration::from_secs(60), "gave up in {:?}", started.elapsed());
+}
+
+/// Opens the boards behind `ptys` and waits for their hellos.
+fn connect(ptys: &[String]) -> SerialArray {
+    let mut array = SerialArray::open(ptys, ptys.to_vec(), Duration::from_secs(30)).expect("ptys open");
+    array.connect().expect("every node says hello");
+    array
+}
+
+#[test]
+fn a_crossed_cable_is_named_before_anything_renders() {
+    let _one = one_array();
+    let board = EmulatedBoard::Netduinoplus2;
+    let array = [2, 2, 2];
+    // Node 0's +X and +Y cables plugged into each other's sockets: its +X
+    // port reaches node 2 (whose -Y cable it holds), its +Y port node 1.
+    let crossed = [((0, Port::PosX), (0, Port::PosY))];
+    let how = Launch { crossed: &crossed, ..Launch::default() };
+    let qemu = QemuArray::launch_with(board, array, &firmware(board), how).expect("emulators start");
+    let err = connect(&qemu.ptys).check_cabling(array).expect_err("a crossed cable is found");
+    assert_eq!(err.exit_code(), 32, "{err}");
+    let want = format!("node 0 (0,0,0) on {}: its +X and +Y cables are swapped", qemu.ptys[0]);
+    assert_eq!(err.to_string(), want);
+    // The same boards listed: every other cable is right.
+    let listing = host_tool::boards::list(&qemu.ptys, Some(array), Duration::from_secs(10)).expect("listed");
+    assert!(listing.contains("not cabled as a 2x2x2 array"), "{listing}");
+    assert_eq!(listing.matches(": its ").count(), 1, "one fault: {listing}");
+}
+
+#[test]
+fn the_host_puts_shuffled_ports_in_array_order_by_the_cables() {
+    let _one = one_array();
+    let board = EmulatedBoard::Netduinoplus2;
+    let array = [2, 2, 2];
+    let qemu = QemuArray::launch(board, array, &firmware(board)).expect("emulators start");
+    let mut shuffled = qemu.ptys.clone();
+    shuffled.reverse();
+    shuffled.swap(2, 5);
+    let err = connect(&shuffled).check_cabling(array).expect_err("the order given is not the array's");
+    let want = format!("in array order: --ports {} (or add --order-ports)", qemu.ptys.join(","));
+    assert!(err.to_string().ends_with(&want), "{err}");
+    let mut boards = connect(&shuffled);
+    assert_eq!(boards.order_by_cabling(array).expect("an order fits"), qemu.ptys);
+    boards.check_cabling(array).expect("in order now");
+    // Each board names itself with the id the host gave it.
+    let ids: Vec<_> = boards.hellos().iter().map(|h| h.expect("said hello").board.id).collect();
+    assert_eq!(ids, qemu.ids);
+}
+
+/// The writes to a board's user LEDs in its emulator's log, as (light, lit)
+/// pairs in order: 0 is the working light, 1 the fault light.
+fn light_writes(board: EmulatedBoard, log: &str) -> Vec<(usize, bool)> {
+    let field = |line: &str, key: &str| {
+        let value = line.split(key).nth(1)?.split([' ', ')', ',']).next()?;
+        u32::from_str_radix(value.trim_start_matches("0x"), 16).ok()
+    };
+    let mut writes = Vec::new();
+    for line in log.lines() {
+        match board {
+            // FPGAIO LED0: bit 0 working, bit 1 fault; each write sets both.
+            EmulatedBoard::Mps2An385 if line.starts_with("mps2_fpgaio_write") => {
+                if let (Some(0), Some(data)) = (field(line, "offset "), field(line, "data ")) {
+                    writes.extend([(0, data & 1 != 0), (1, data & 2 != 0)]);
+                }
+            }
+            // GPIOB BSRR: bit n sets pin n, bit n + 16 resets it; PB0 green, PB14 red.
+            EmulatedBoard::Netduinoplus2 if line.starts_with("GPIOB: unimplemented device write") => {
+                if let (Some(0x18), Some(v)) = (field(line, "offset "), field(line, "value ")) {
+                    for (light, pin) in [(0, 0), (1, 14)] {
+                        if v & (1 << pin) != 0 {
+                            writes.push((light, true));
+                        }
+                        if v & (1 << (pin + 16)) != 0 {
+                            writes.push((light, false));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    writes
+}
+
+#[test]
+fn the_lights_show_work_and_waiting_and_no_fault() {
+    let _one = one_array();
+    let s = scene();
+    let mut opts = options(None);
+    opts.array = [2, 1, 1];
+    for board in EmulatedBoard::ALL {
+        let how = Launch { log_lights: true, ..Launch::default() };
+        let qemu = QemuArray::launch_with(board, opts.array, &firmware(board), how).expect("emulators start");
+        session(&qemu.ptys, &s, &opts);
+        for node in 0..2 {
+            let writes = light_writes(board, &qemu.log(node));
+            let working: Vec<bool> = writes.iter().filter(|w| w.0 == 0).map(|w| w.1).collect();
+            // Dark at start, then lit for each stretch of work and dark
+            // again while waiting: many times over a frame.
+            assert_eq!(working.first(), Some(&false), "{} node {node}", board.name());
+            let lit = working.windows(2).filter(|w| !w[0] && w[1]).count();
+            assert!(lit >= 10, "{} node {node}: the working light came on {lit} times", board.name());
+            assert!(
+                writes.iter().all(|&(light, on)| light == 0 || !on),
+                "{} node {node}: the fault light came on",
+                board.name()
+            );
+        }
+    }
+}
+
+#[test]
+fn a_panicking_board_says_where_and_the_host_passes_it_on() {
+    let _one = one_array();
+    let board = EmulatedBoard::Mps2An385;
+    let elf = firmware(board).with_file_name("fault-check-mps2-an385.elf");
+    let mut opts = options(None);
+    opts.array = [1, 1, 1];
+    let backend = Backend::Qemu { board, firmware: elf };
+    let err = match render(&scene(), &opts, &backend, Duration::from_secs(5)) {
+        Ok(_) => panic!("a firmware that panics cannot render"),
+        Err(e) => e,
+    };
+    let text = err.to_string();
+    assert!(text.contains("node firmware panicked at src/bin/fault_check.rs:"), "{text}");
 }

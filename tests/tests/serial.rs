@@ -9,7 +9,7 @@ use std::time::Duration;
 use host_tool::backend::render_serial;
 use host_tool::render::RenderOptions;
 use host_tool::scene::Scene;
-use link_proto::{Capacity, Frame, Hello, MAX_FRAME_LEN, Message, encode_frame};
+use link_proto::{BoardInfo, Capacity, Frame, Hello, MAX_FRAME_LEN, Message, encode_frame};
 use serialport::{SerialPort, TTYPort};
 
 fn scene() -> Scene {
@@ -19,7 +19,7 @@ fn scene() -> Scene {
 #[test]
 fn a_missing_device_is_a_serial_error() {
     let opts = RenderOptions::new([1, 1, 1]);
-    let err = render_serial(&scene(), &opts, &["/dev/no-such-board".into()], Duration::from_secs(1))
+    let err = render_serial(&scene(), &opts, &["/dev/no-such-board".into()], false, Duration::from_secs(1))
         .expect_err("no device, no render");
     assert_eq!(err.exit_code(), 21, "{err}");
     assert!(err.to_string().contains("/dev/no-such-board") && err.to_string().contains("missing"), "{err}");
@@ -41,6 +41,7 @@ fn a_node_of_another_protocol_version_is_refused() {
             version: 99,
             node: 0,
             capacity: Capacity { spheres: 8, refs: 64, cubes: 64, rays: 64 },
+            board: BoardInfo::HOST,
         });
         let mut buf = [0u8; MAX_FRAME_LEN];
         let n = encode_frame(&Frame::new(0, hello), &mut buf).expect("encodes");
@@ -52,7 +53,7 @@ fn a_node_of_another_protocol_version_is_refused() {
         }
     });
     let opts = RenderOptions::new([1, 1, 1]);
-    let err = render_serial(&scene(), &opts, &[path], Duration::from_secs(5)).expect_err("refused");
+    let err = render_serial(&scene(), &opts, &[path], false, Duration::from_secs(5)).expect_err("refused");
     drop(slave);
     done.store(true, std::sync::atomic::Ordering::Relaxed);
     assert_eq!(err.exit_code(), 31, "{err}");

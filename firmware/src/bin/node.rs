@@ -16,18 +16,14 @@ static LINKS: ConstStaticCell<BoardLinks> = ConstStaticCell::new(BoardLinks::new
 
 #[entry]
 fn main() -> ! {
-    let (host, neighbours, mut clock) = board::init();
+    let board::Parts { host, neighbours, mut clock, info, mut lights } = board::init();
+    node_board::log::booted(&info);
     let mut wires = Wires::new(host, neighbours);
     wake::arm(board::WAKE_PERIOD);
     let idle = Idle { clear: board::clear_wakeups, sleep: wake::sleep };
+    let node = NODE.take();
+    node.set_board(info);
     let links = LINKS.take();
     links.set_incarnation(boot_count::next_incarnation());
-    run(NODE.take(), links, &mut wires, &mut clock, idle)
-}
-
-#[panic_handler]
-fn panic(_: &core::panic::PanicInfo) -> ! {
-    // node-fw reports bad input as error messages; a panic is a bug. Stop, so
-    // the host's time-out names this node.
-    board::exit(false)
+    run(node, links, &mut wires, &mut clock, &mut lights, idle)
 }

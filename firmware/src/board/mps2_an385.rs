@@ -6,10 +6,14 @@
 
 use core::convert::Infallible;
 
+use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_io::{ErrorType, Read, ReadReady, Write, WriteReady};
+use link_proto::{BoardInfo, BoardKind, ClockSource};
 
+use super::identity;
 use super::mmio::Reg;
 use crate::clock::{Clock, Widen};
+use crate::lights::Lights;
 
 /// Base addresses of UART 0-4.
 pub const UARTS: [usize; 5] = [0x4000_4000, 0x4000_5000, 0x4000_6000, 0x4000_7000, 0x4000_9000];
@@ -35,7 +39,7 @@ pub struct Uart {
 impl Uart {
     /// Enables the UART at `base` (115200 baud from 25 MHz; QEMU ignores the rate).
     pub fn new(base: usize) -> Self {
-        Reg::at(base, BAUDDIV).write(25_000_000 / 115_200);
+        Reg::at(base, BAUDDIV).write(25_000_000 / BAUD);
         Reg::at(base, CTRL).write(CTRL_TX_RX);
         Self { base }
     }
@@ -131,10 +135,67 @@ pub fn uarts() -> (Uart, [Uart; NEIGHBOUR_UARTS]) {
     (host, [a, b, c, d])
 }
 
-/// The host UART, the neighbour UARTs and the clock.
-pub fn init() -> (Uart, [Uart; NEIGHBOUR_UARTS], Timer) {
+/// Where the host puts this board's id: the last 16 bytes of the 64 KiB of
+/// RAM that `memory/mps2-an385.x` claims.
+pub const ID_CELL: usize = 0x2000_FFF0;
+
+/// The UARTs' rate (QEMU ignores it).
+const BAUD: u32 = 115_200;
+
+/// The board's parts the node firmware uses.
+pub struct Parts {
+    /// The host's UART.
+    pub host: Uart,
+    /// The neighbours' UARTs.
+    pub neighbours: [Uart; NEIGHBOUR_UARTS],
+    /// The clock.
+    pub clock: Timer,
+    /// What the board is, for its hellos.
+    pub info: BoardInfo,
+    /// The user LEDs: LED0 lit while working, LED1 once failed.
+    pub lights: Lights<Led, Led>,
+}
+
+/// Brings the board up.
+pub fn init() -> Parts {
     let (host, neighbours) = uarts();
-    (host, neighbours, Timer::start())
+    let info = BoardInfo {
+        id: identity::emulated(ID_CELL),
+        kind: BoardKind::Mps2An385,
+        firmware: identity::FIRMWARE,
+        clock_hz: 25_000_000,
+        clock_source: ClockSource::Virtual,
+        link_baud: BAUD,
+        host_baud: BAUD,
+    };
+    let lights = Lights::new(Led { bit: 0 }, Led { bit: 1 });
+    Parts { host, neighbours, clock: Timer::start(), info, lights }
+}
+
+/// The FPGA's system control registers (AN385: LED0 drives the two user LEDs).
+const FPGAIO: usize = 0x4002_8000;
+const LED0: usize = 0x000;
+
+/// One user LED, a bit of FPGAIO's LED0 register.
+#[derive(Debug)]
+pub struct Led {
+    bit: u32,
+}
+
+impl PinErrorType for Led {
+    type Error = Infallible;
+}
+
+impl OutputPin for Led {
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        Reg::at(FPGAIO, LED0).modify(1 << self.bit, 0);
+        Ok(())
+    }
+
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        Reg::at(FPGAIO, LED0).modify(1 << self.bit, 1 << self.bit);
+        Ok(())
+    }
 }
 
 /// SysTick period while idle: 2 ms at 25 MHz (resends and load intervals

@@ -25,12 +25,18 @@
 
 use core::convert::Infallible;
 
-use clock_tree::nucleo_f413zh::{FROM_HSE, FROM_HSI, HOST_APB1, NEIGHBOUR_APB1, NEIGHBOUR_APB2};
+use clock_tree::nucleo_f413zh::{
+    FROM_HSE, FROM_HSI, HOST_APB1, HOST_BAUD, NEIGHBOUR_APB1, NEIGHBOUR_APB2, NEIGHBOUR_BAUD,
+};
 use clock_tree::{Brr, ClockPlan};
+use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_io::{ErrorType, Read, ReadReady, Write, WriteReady};
+use link_proto::{BoardId, BoardInfo, BoardKind, ClockSource};
 
+use super::identity;
 use super::mmio::Reg;
 use crate::clock::{Clock, Widen};
+use crate::lights::Lights;
 
 /// Neighbour UARTs.
 pub const NEIGHBOUR_UARTS: usize = 6;
@@ -274,11 +280,108 @@ impl Clock for Timer {
     }
 }
 
-/// The core clock, the host UART, the neighbour UARTs and the clock.
-pub fn init() -> (Uart, [Uart; NEIGHBOUR_UARTS], Timer) {
-    let _source = start_clocks();
+/// The board's parts the node firmware uses.
+pub struct Parts {
+    /// The host's UART.
+    pub host: Uart,
+    /// The neighbours' UARTs.
+    pub neighbours: [Uart; NEIGHBOUR_UARTS],
+    /// The clock.
+    pub clock: Timer,
+    /// What the board is, for its hellos.
+    pub info: BoardInfo,
+    /// The user LEDs: LD1 (green) lit while working, LD3 (red) once failed.
+    pub lights: Lights<Led, Led>,
+}
+
+/// Brings the board up: the core clock first, then the UARTs at their rates.
+pub fn init() -> Parts {
+    let core = start_clocks();
     let (host, neighbours) = uarts();
-    (host, neighbours, Timer::start())
+    let lights = Lights::new(Led::new(LD1_GREEN), Led::new(LD3_RED));
+    Parts { host, neighbours, clock: Timer::start(), info: board_info(core), lights }
+}
+
+/// The NUCLEO-F413ZH's user LEDs (UM1974: LD1 green on PB0, LD2 blue on
+/// PB7, LD3 red on PB14). LD2's pin is USART1's RX (+X), so it stays dark.
+const LD1_GREEN: Pin = Pin(B, 0);
+const LD3_RED: Pin = Pin(B, 14);
+const BSRR: usize = 0x18;
+
+/// A push-pull GPIO output driving an LED, set and reset through BSRR
+/// (RM0430 7.4.7: bit n sets pin n, bit n + 16 resets it, atomically).
+#[derive(Debug)]
+pub struct Led {
+    pin: Pin,
+}
+
+impl Led {
+    fn new(pin: Pin) -> Self {
+        let Pin(port, n) = pin;
+        Reg::at(RCC, AHB1ENR).modify(1 << port, 1 << port);
+        Reg::at(GPIO + port * GPIO_STRIDE, MODER).modify(0b11 << (2 * n), 0b01 << (2 * n));
+        Self { pin }
+    }
+
+    fn bsrr(&self, value: u32) {
+        let Pin(port, _) = self.pin;
+        Reg::at(GPIO + port * GPIO_STRIDE, BSRR).write(value);
+    }
+}
+
+impl PinErrorType for Led {
+    type Error = Infallible;
+}
+
+impl OutputPin for Led {
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        self.bsrr(1 << (self.pin.1 + 16));
+        Ok(())
+    }
+
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        self.bsrr(1 << self.pin.1);
+        Ok(())
+    }
+}
+
+/// Where the host puts an emulated board's id: the last 16 bytes of the
+/// 192 KiB of RAM that `memory/netduinoplus2.x` claims (QEMU's SoC has no
+/// unique id).
+#[cfg(feature = "netduinoplus2")]
+pub const ID_CELL: usize = 0x2002_FFF0;
+
+#[cfg(feature = "netduinoplus2")]
+const KIND: BoardKind = BoardKind::Netduinoplus2;
+#[cfg(not(feature = "netduinoplus2"))]
+const KIND: BoardKind = BoardKind::NucleoF413zh;
+
+#[cfg(feature = "netduinoplus2")]
+fn board_id() -> BoardId {
+    identity::emulated(ID_CELL)
+}
+#[cfg(not(feature = "netduinoplus2"))]
+fn board_id() -> BoardId {
+    identity::stm32_uid()
+}
+
+/// The board as its hello names it. On the reset clock the baud rates are
+/// not the ones set, so none is claimed.
+fn board_info(core: CoreClock) -> BoardInfo {
+    let (clock_hz, clock_source, link_baud, host_baud) = match core {
+        CoreClock::PllFromHse => (FROM_HSE.sysclk(), ClockSource::PllFromExternal, NEIGHBOUR_BAUD, HOST_BAUD),
+        CoreClock::PllFromHsi => (FROM_HSI.sysclk(), ClockSource::PllFromInternal, NEIGHBOUR_BAUD, HOST_BAUD),
+        CoreClock::Hsi => (16_000_000, ClockSource::Reset, 0, 0),
+    };
+    BoardInfo {
+        id: board_id(),
+        kind: KIND,
+        firmware: identity::FIRMWARE,
+        clock_hz,
+        clock_source,
+        link_baud,
+        host_baud,
+    }
 }
 
 /// SysTick period while idle: 2 ms at 100 MHz.
@@ -290,8 +393,15 @@ pub fn clear_wakeups() {
     super::wake::clear();
 }
 
-/// Nothing to exit to on a real board: stop.
-pub fn exit(_success: bool) -> ! {
+/// Under QEMU the emulation ends (semihosting); a real board has nothing
+/// to exit to: it stops.
+pub fn exit(success: bool) -> ! {
+    #[cfg(feature = "netduinoplus2")]
+    {
+        use cortex_m_semihosting::debug;
+        debug::exit(if success { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    }
+    let _ = success;
     loop {
         cortex_m::asm::wfi();
     }

@@ -41,6 +41,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.grants_due = [0; 6];
         self.neighbours = [false; 6];
         self.hello_due = true;
+        // A new host session learns the cabling afresh (the cables stay).
+        for (due, peer) in self.peer_note_due.iter_mut().zip(self.peers) {
+            *due = peer.is_some();
+        }
         self.error_due = None;
         self.load_due = None;
         self.meter = LoadMeter::new();

@@ -29,9 +29,11 @@
 //! `transmit` (what goes out each poll).
 
 use heapless::{Deque, Vec};
+use link_proto::board::version_part;
 use link_proto::{
-    Assign, Balance, Capacity, ErrorCode, ErrorReport, LightMsg, Message, PROTOCOL_VERSION, RayMsg, RayReply,
-    RenderStart, Retire, SceneHeader,
+    Assign, Balance, BoardId, BoardInfo, BoardKind, Capacity, ClockSource, ErrorCode, ErrorReport,
+    FirmwareVersion, Hello, LightMsg, Message, PROTOCOL_VERSION, RayMsg, RayReply, RenderStart, Retire,
+    SceneHeader,
 };
 
 use crate::error::Error;
@@ -158,6 +160,14 @@ pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> 
     /// Per neighbour port: whether the array has a node there (from the assignment).
     neighbours: [bool; 6],
     hello_due: bool,
+    /// The board this node runs on, as its hellos name it.
+    board: BoardInfo,
+    /// Per neighbour port: the board that said hello there.
+    peers: [Option<BoardId>; 6],
+    /// Per neighbour port: our hello is still to go.
+    peer_hello_due: [bool; 6],
+    /// Per neighbour port: the host is still to be told who is there.
+    peer_note_due: [bool; 6],
     error_due: Option<ErrorReport>,
     load_due: Option<u32>,
     meter: LoadMeter,
@@ -171,6 +181,24 @@ pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> 
 
 /// Interval of the final load report sent after `Finish`.
 pub const FINAL_INTERVAL: u32 = u32::MAX;
+
+/// node-fw's own version: what a node reports unless its board says otherwise.
+pub const NODE_FW_VERSION: FirmwareVersion = FirmwareVersion {
+    major: version_part(env!("CARGO_PKG_VERSION_MAJOR")),
+    minor: version_part(env!("CARGO_PKG_VERSION_MINOR")),
+    patch: version_part(env!("CARGO_PKG_VERSION_PATCH")),
+};
+
+/// A node's board until its owner says which: no id, virtual time.
+const UNKNOWN_BOARD: BoardInfo = BoardInfo {
+    id: BoardId::NONE,
+    kind: BoardKind::Simulated,
+    firmware: NODE_FW_VERSION,
+    clock_hz: 0,
+    clock_source: ClockSource::Virtual,
+    link_baud: 0,
+    host_baud: 0,
+};
 
 const NO_HEADER: SceneHeader =
     SceneHeader { grid: [1; 3], ambient: [0; 3], background: [0; 3], max_depth: 0 };
@@ -200,6 +228,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             grants_due: [0; 6],
             neighbours: [false; 6],
             hello_due: true,
+            board: UNKNOWN_BOARD,
+            peers: [None; 6],
+            peer_hello_due: [true; 6],
+            peer_note_due: [false; 6],
             error_due: None,
             load_due: None,
             meter: LoadMeter::new(),
@@ -214,6 +246,23 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// The capacities this node was built with.
     pub const fn capacity() -> Capacity {
         Capacity { spheres: S as u32, refs: R as u32, cubes: C as u32, rays: P as u16 }
+    }
+
+    /// Names the board the node runs on, for its hellos (call before the
+    /// first poll).
+    pub fn set_board(&mut self, board: BoardInfo) {
+        self.board = board;
+    }
+
+    /// The board at each neighbour port (port order), as far as its hello
+    /// has come.
+    pub fn peers(&self) -> [Option<BoardId>; 6] {
+        self.peers
+    }
+
+    /// This node's hello.
+    fn hello(&self) -> Hello {
+        Hello { version: PROTOCOL_VERSION, node: self.id, capacity: Self::capacity(), board: self.board }
     }
 
     /// Node index.
@@ -252,6 +301,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         !self.pool.is_empty()
             || self.creation_left()
             || self.hello_due
+            || self.peer_note_due.iter().any(|&due| due)
             || self.error_due.is_some()
             || self.load_due.is_some()
             || self.space_due.iter().any(|&s| s)
@@ -344,7 +394,16 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             (_, Message::Hello(h)) if h.version != PROTOCOL_VERSION => {
                 self.fail(ErrorCode::Version, u32::from(h.version), u32::from(PROTOCOL_VERSION))
             }
-            (_, Message::Hello(_)) => {}
+            // The host's hello (also its heartbeat) needs no answer.
+            (Port::Host, Message::Hello(_)) => {}
+            (p, Message::Hello(h)) => {
+                if let (Some(peer), Some(due)) =
+                    (self.peers.get_mut(p.index()), self.peer_note_due.get_mut(p.index()))
+                {
+                    *peer = Some(h.board.id);
+                    *due = true;
+                }
+            }
             (Port::Host, Message::SceneBegin(header)) => self.begin_scene(header),
             (Port::Host, Message::Assign(a)) => self.take_assignment(a),
             (Port::Host, Message::Sphere(s)) => self.take_sphere(s),
@@ -410,6 +469,7 @@ fn kind(msg: &Message) -> u32 {
         Message::SlideNote(_) => 22,
         Message::Grant(_) => 23,
         Message::GrantedRay(_) => 24,
+        Message::Peer(_) => 25,
     }
 }
 

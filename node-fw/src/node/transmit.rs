@@ -1,7 +1,7 @@
 //! Sending: replies, notices, rays and retirements, control messages and
 //! slabs, as far as the links take them this poll.
 
-use link_proto::{ErrorCode, Hello, LoadReport, Message, PROTOCOL_VERSION, Retire, Retirements};
+use link_proto::{ErrorCode, LoadReport, Message, PeerNote, Retire, Retirements};
 
 use crate::link::{Links, Port};
 use crate::pool::Stage;
@@ -51,9 +51,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             ok
         };
         if self.hello_due {
-            let hello = Hello { version: PROTOCOL_VERSION, node: self.id, capacity: Self::capacity() };
-            self.hello_due = !send(links, Port::Host, Message::Hello(hello));
+            self.hello_due = !send(links, Port::Host, Message::Hello(self.hello()));
         }
+        self.greet_neighbours(links, &mut send);
         if let Some(e) = self.error_due
             && send(links, Port::Host, Message::Error(e))
         {
@@ -105,6 +105,31 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             };
             if send(links, Port::Host, Message::Load(report)) {
                 self.load_due = None;
+            }
+        }
+    }
+
+    /// Says hello on every cabled neighbour port once, and tells the host who
+    /// answered. The hellos are not pending work (a port may have no cable,
+    /// and an idle node must still rest); the notes are, the host being
+    /// always there.
+    fn greet_neighbours<L: Links>(
+        &mut self,
+        links: &mut L,
+        send: &mut impl FnMut(&mut L, Port, Message) -> bool,
+    ) {
+        let hello = Message::Hello(self.hello());
+        for port in Port::NEIGHBOURS {
+            let p = port.index();
+            if let Some(due) = self.peer_hello_due.get_mut(p).filter(|due| **due)
+                && links.cabled(port)
+            {
+                *due = !send(links, port, hello.clone());
+            }
+            if let (Some(due), Some(&Some(board))) =
+                (self.peer_note_due.get_mut(p).filter(|due| **due), self.peers.get(p))
+            {
+                *due = !send(links, Port::Host, Message::Peer(PeerNote { port: p as u8, board }));
             }
         }
     }
