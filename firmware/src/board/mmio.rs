@@ -1,5 +1,8 @@
-//! Memory-mapped registers: with the boot counter, the only unsafe code of
-//! the firmware.
+//! Memory-mapped registers where no peripheral-access crate fits: the
+//! mps2-an385's CMSDK UARTs, timer and FPGA registers, the Cortex-M core's
+//! NVIC and SysTick, an STM32's unique id and the emulated boards' id cell.
+//! With the boot counter and the STM32 module's register handles, the only
+//! unsafe code of the firmware.
 #![allow(unsafe_code)]
 
 /// One 32-bit peripheral register at a fixed address.

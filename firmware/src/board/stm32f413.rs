@@ -22,6 +22,10 @@
 //! one is bounded, the core stays on its reset clock, and the emulator
 //! ignores baud rates anyway. TIM2 there counts virtual nanoseconds, which
 //! `-icount shift=0` makes instructions, the in-memory board's unit.
+//!
+//! Registers go through the `stm32f4` peripheral-access crate: typed fields
+//! where the reference manual names them, whole-register values only where
+//! [`clock_tree`] computes them (and its tests decode them field by field).
 
 use core::convert::Infallible;
 
@@ -32,98 +36,28 @@ use clock_tree::{Brr, ClockPlan};
 use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_io::{ErrorType, Read, ReadReady, Write, WriteReady};
 use link_proto::{BoardId, BoardInfo, BoardKind, ClockSource};
+use stm32f4::Periph;
+use stm32f4::stm32f413::{self as pac, gpiob, tim2, uart4, usart1};
 
 use super::identity;
-use super::mmio::Reg;
 use crate::clock::{Clock, Widen};
 use crate::lights::Lights;
 
 /// Neighbour UARTs.
 pub const NEIGHBOUR_UARTS: usize = 6;
 
-const RCC: usize = 0x4002_3800;
-const RCC_CR: usize = 0x00;
-const RCC_PLLCFGR: usize = 0x04;
-const RCC_CFGR: usize = 0x08;
-const AHB1ENR: usize = 0x30;
-const APB1ENR: usize = 0x40;
-const APB2ENR: usize = 0x44;
-const CR_HSEON: u32 = 1 << 16;
-const CR_HSERDY: u32 = 1 << 17;
-const CR_HSEBYP: u32 = 1 << 18;
-const CR_PLLON: u32 = 1 << 24;
-const CR_PLLRDY: u32 = 1 << 25;
-const CFGR_SWS_PLL: u32 = 0b10 << 2;
-const CFGR_SWS: u32 = 0b11 << 2;
-const APB1ENR_TIM2: u32 = 1 << 0;
-const APB1ENR_PWR: u32 = 1 << 28;
-const PWR_CR: usize = 0x4000_7000;
-/// Voltage scale 1 (VOS = 11), needed above 84 MHz.
-const PWR_CR_VOS1: u32 = 0b11 << 14;
-const FLASH_ACR: usize = 0x4002_3C00;
 /// Polls of a ready flag before giving up on it (some milliseconds at 16 MHz;
 /// the HSE and the PLL lock within hundreds of microseconds).
 const READY_POLLS: u32 = 100_000;
 
-const GPIO: usize = 0x4002_0000;
-const GPIO_STRIDE: usize = 0x400;
-const MODER: usize = 0x00;
-const AFRL: usize = 0x20;
-const AFRH: usize = 0x24;
-
-const SR: usize = 0x00;
-const DR: usize = 0x04;
-const BRR: usize = 0x08;
-const CR1: usize = 0x0C;
-const SR_ORE: u32 = 1 << 3;
-const SR_RXNE: u32 = 1 << 5;
-const SR_TXE: u32 = 1 << 7;
-/// Enabled, TX, RX, RX interrupt (it only pends: see [`super::wake`]).
-const CR1_UE_TE_RE: u32 = (1 << 13) | (1 << 5) | (1 << 3) | (1 << 2);
-
-const TIM2: usize = 0x4000_0000;
-const TIM_CR1: usize = 0x00;
-const TIM_EGR: usize = 0x14;
-const TIM_CNT: usize = 0x24;
-const TIM_PSC: usize = 0x28;
-const TIM_ARR: usize = 0x2C;
-
-/// A GPIO pin: port (0 = A) and number.
-#[derive(Debug, Clone, Copy)]
-struct Pin(usize, usize);
-
-/// One U(S)ART: base, clock-enable register and bit, pins, alternate
-/// function, baud-rate register.
-#[derive(Debug, Clone, Copy)]
-struct UartDef {
-    base: usize,
-    enable: (usize, u32),
-    tx: Pin,
-    rx: Pin,
-    af: u32,
-    brr: Brr,
+/// The register block of a peripheral taken from `Peripherals`, for the
+/// rest of the program.
+fn keep<RB, const A: usize>(_owned: Periph<RB, A>) -> &'static RB {
+    // SAFETY: `Peripherals::take` hands each peripheral out once, and its
+    // only handle is given up here: this reference is the only way left to
+    // the block, which lives at its fixed address for ever.
+    unsafe { &*Periph::<RB, A>::ptr() }
 }
-
-const A: usize = 0;
-const B: usize = 1;
-const C: usize = 2;
-const D: usize = 3;
-const E: usize = 4;
-
-const NA1: Brr = NEIGHBOUR_APB1;
-const NA2: Brr = NEIGHBOUR_APB2;
-
-/// Host, then +X, -X, +Y, -Y, +Z, -Z (the table above).
-#[rustfmt::skip]
-const UARTS: [UartDef; 7] = [
-    UartDef { base: 0x4000_4800, enable: (APB1ENR, 18), tx: Pin(D, 8), rx: Pin(D, 9), af: 7, brr: HOST_APB1 },
-    UartDef { base: 0x4001_1000, enable: (APB2ENR, 4), tx: Pin(B, 6), rx: Pin(B, 7), af: 7, brr: NA2 },
-    UartDef { base: 0x4000_4400, enable: (APB1ENR, 17), tx: Pin(D, 5), rx: Pin(D, 6), af: 7, brr: NA1 },
-    UartDef { base: 0x4000_4C00, enable: (APB1ENR, 19), tx: Pin(A, 0), rx: Pin(A, 1), af: 8, brr: NA1 },
-    UartDef { base: 0x4000_5000, enable: (APB1ENR, 20), tx: Pin(C, 12), rx: Pin(D, 2), af: 8, brr: NA1 },
-    UartDef { base: 0x4001_1400, enable: (APB2ENR, 5), tx: Pin(C, 6), rx: Pin(C, 7), af: 8, brr: NA2 },
-    UartDef { base: 0x4000_7800, enable: (APB1ENR, 30), tx: Pin(E, 8), rx: Pin(E, 7), af: 8, brr: NA1 },
-];
 
 /// Where the core clock came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -137,65 +71,102 @@ pub enum CoreClock {
     Hsi,
 }
 
-/// Polls `reg` until `mask` reads `want`, at most [`READY_POLLS`] times.
-fn wait_for(reg: Reg, mask: u32, want: u32) -> bool {
-    (0..READY_POLLS).any(|_| reg.read() & mask == want)
+/// Polls until `ready` holds, at most [`READY_POLLS`] times.
+fn wait_for(ready: impl Fn() -> bool) -> bool {
+    (0..READY_POLLS).any(|_| ready())
 }
 
 /// Runs the core from the PLL: the ST-LINK's clock if it is there, else the
 /// HSI. Voltage scale and flash wait states go up before the clock does.
-fn start_clocks() -> CoreClock {
-    let cr = Reg::at(RCC, RCC_CR);
-    cr.modify(CR_HSEON | CR_HSEBYP, CR_HSEON | CR_HSEBYP);
-    let (plan, source): (ClockPlan, CoreClock) = if wait_for(cr, CR_HSERDY, CR_HSERDY) {
+fn start_clocks(
+    rcc: &pac::rcc::RegisterBlock,
+    pwr: &pac::pwr::RegisterBlock,
+    flash: &pac::flash::RegisterBlock,
+) -> CoreClock {
+    rcc.cr().modify(|_, w| w.hseon().set_bit().hsebyp().set_bit());
+    let (plan, source): (ClockPlan, CoreClock) = if wait_for(|| rcc.cr().read().hserdy().bit_is_set()) {
         (FROM_HSE, CoreClock::PllFromHse)
     } else {
-        cr.modify(CR_HSEON | CR_HSEBYP, 0);
+        rcc.cr().modify(|_, w| w.hseon().clear_bit().hsebyp().clear_bit());
         (FROM_HSI, CoreClock::PllFromHsi)
     };
-    Reg::at(RCC, APB1ENR).modify(APB1ENR_PWR, APB1ENR_PWR);
-    Reg::at(PWR_CR, 0).modify(PWR_CR_VOS1, PWR_CR_VOS1);
-    Reg::at(RCC, RCC_PLLCFGR).write(plan.pllcfgr());
-    cr.modify(CR_PLLON, CR_PLLON);
-    if !wait_for(cr, CR_PLLRDY, CR_PLLRDY) {
-        cr.modify(CR_PLLON, 0);
+    rcc.apb1enr().modify(|_, w| w.pwren().set_bit());
+    // Voltage scale 1, needed above 84 MHz.
+    pwr.cr().modify(|_, w| w.vos().scale1());
+    // SAFETY (all three writes): every value comes from `ClockPlan`, whose
+    // tests decode it field by field against RM0430 and whose constructor
+    // fails the build on a factor out of the chip's range.
+    rcc.pllcfgr().write(|w| unsafe { w.bits(plan.pllcfgr()) });
+    rcc.cr().modify(|_, w| w.pllon().set_bit());
+    if !wait_for(|| rcc.cr().read().pllrdy().bit_is_set()) {
+        rcc.cr().modify(|_, w| w.pllon().clear_bit());
         return CoreClock::Hsi;
     }
-    Reg::at(FLASH_ACR, 0).write(plan.flash_acr());
-    Reg::at(RCC, RCC_CFGR).write(plan.cfgr());
-    if wait_for(Reg::at(RCC, RCC_CFGR), CFGR_SWS, CFGR_SWS_PLL) { source } else { CoreClock::Hsi }
+    flash.acr().write(|w| unsafe { w.bits(plan.flash_acr()) });
+    rcc.cfgr().write(|w| unsafe { w.bits(plan.cfgr()) });
+    if wait_for(|| rcc.cfgr().read().sws().is_pll()) { source } else { CoreClock::Hsi }
 }
 
-fn alternate(pin: Pin, af: u32) {
-    let Pin(port, n) = pin;
-    Reg::at(RCC, AHB1ENR).modify(1 << port, 1 << port);
-    let gpio = GPIO + port * GPIO_STRIDE;
-    Reg::at(gpio, MODER).modify(0b11 << (2 * n), 0b10 << (2 * n));
-    let (afr, shift) = if n < 8 { (AFRL, 4 * n) } else { (AFRH, 4 * (n - 8)) };
-    Reg::at(gpio, afr).modify(0xF << shift, af << shift);
+/// Puts pins `n...` of `gpio` on alternate function `af`.
+macro_rules! alternate {
+    ($gpio:expr, $af:expr, $($n:expr),+) => {{
+        let gpio = $gpio;
+        $(
+            gpio.moder().modify(|_, w| w.moder($n).alternate());
+            if $n < 8 {
+                gpio.afrl().modify(|_, w| w.afr($n).set($af));
+            } else {
+                gpio.afrh().modify(|_, w| w.afr($n % 8).set($af));
+            }
+        )+
+    }};
+}
+
+/// A U(S)ART's registers: USART1-3 and 6 have the full block, UART4, 5 and 7
+/// the asynchronous one, alike in the four registers used here (RM0430
+/// 26.6: SR, DR, BRR, CR1).
+#[derive(Debug, Clone, Copy)]
+enum Regs {
+    Usart(&'static usart1::RegisterBlock),
+    Uart(&'static uart4::RegisterBlock),
+}
+
+/// Runs `$body` with `$r` bound to whichever block `$regs` holds.
+macro_rules! with_regs {
+    ($regs:expr, $r:ident => $body:expr) => {
+        match $regs {
+            Regs::Usart($r) => $body,
+            Regs::Uart($r) => $body,
+        }
+    };
 }
 
 /// A polled STM32F4 U(S)ART.
 #[derive(Debug)]
 pub struct Uart {
-    base: usize,
+    regs: Regs,
     /// Receive overruns seen (bytes lost in hardware; the reliable channel resends).
     pub overruns: u32,
 }
 
 impl Uart {
-    fn new(def: UartDef) -> Self {
-        let (reg, bit) = def.enable;
-        Reg::at(RCC, reg).modify(1 << bit, 1 << bit);
-        alternate(def.tx, def.af);
-        alternate(def.rx, def.af);
-        Reg::at(def.base, BRR).write(u32::from(def.brr.value));
-        Reg::at(def.base, CR1).write(CR1_UE_TE_RE);
-        Self { base: def.base, overruns: 0 }
+    /// Sets the rate and enables transmitter, receiver and the receive
+    /// interrupt (it only pends: see [`super::wake`]). The bus clock must be on.
+    fn new(regs: Regs, brr: Brr) -> Self {
+        let (mantissa, fraction) = (brr.value >> 4, (brr.value & 0xF) as u8);
+        with_regs!(regs, r => {
+            r.brr().write(|w| w.div_mantissa().set(mantissa).div_fraction().set(fraction));
+            r.cr1().write(|w| w.ue().set_bit().te().set_bit().re().set_bit().rxneie().set_bit());
+        });
+        Self { regs, overruns: 0 }
     }
 
-    fn status(&self) -> u32 {
-        Reg::at(self.base, SR).read()
+    fn rx_ready(&self) -> bool {
+        with_regs!(self.regs, r => r.sr().read().rxne().bit_is_set())
+    }
+
+    fn tx_ready(&self) -> bool {
+        with_regs!(self.regs, r => r.sr().read().txe().bit_is_set())
     }
 }
 
@@ -205,7 +176,7 @@ impl ErrorType for Uart {
 
 impl ReadReady for Uart {
     fn read_ready(&mut self) -> Result<bool, Infallible> {
-        Ok(self.status() & SR_RXNE != 0)
+        Ok(self.rx_ready())
     }
 }
 
@@ -213,23 +184,21 @@ impl Read for Uart {
     /// Blocks until a byte arrives (embedded-io's contract); reads one.
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, Infallible> {
         let Some(first) = buf.first_mut() else { return Ok(0) };
-        let mut sr = self.status();
-        while sr & SR_RXNE == 0 {
-            sr = self.status();
-        }
+        while !self.rx_ready() {}
         // An overrun keeps the byte in DR and loses the next; reading SR then
         // DR delivers the kept byte and clears the overrun.
-        if sr & SR_ORE != 0 {
+        let overrun = with_regs!(self.regs, r => r.sr().read().ore().bit_is_set());
+        if overrun {
             self.overruns = self.overruns.wrapping_add(1);
         }
-        *first = Reg::at(self.base, DR).read() as u8;
+        *first = with_regs!(self.regs, r => r.dr().read().dr().bits()) as u8;
         Ok(1)
     }
 }
 
 impl WriteReady for Uart {
     fn write_ready(&mut self) -> Result<bool, Infallible> {
-        Ok(self.status() & SR_TXE != 0)
+        Ok(self.tx_ready())
     }
 }
 
@@ -237,46 +206,40 @@ impl Write for Uart {
     /// Blocks until there is room (embedded-io's contract); writes one byte.
     fn write(&mut self, buf: &[u8]) -> Result<usize, Infallible> {
         let Some(&first) = buf.first() else { return Ok(0) };
-        while self.status() & SR_TXE == 0 {}
-        Reg::at(self.base, DR).write(u32::from(first));
+        while !self.tx_ready() {}
+        with_regs!(self.regs, r => r.dr().write(|w| w.dr().set(u16::from(first))));
         Ok(1)
     }
 
     fn flush(&mut self) -> Result<(), Infallible> {
-        while self.status() & SR_TXE == 0 {}
+        while !self.tx_ready() {}
         Ok(())
     }
-}
-
-/// The host UART and the six neighbour UARTs, in port order.
-pub fn uarts() -> (Uart, [Uart; NEIGHBOUR_UARTS]) {
-    let [host, px, nx, py, ny, pz, nz] = UARTS.map(Uart::new);
-    (host, [px, nx, py, ny, pz, nz])
 }
 
 /// TIM2, free-running up over 32 bits at the core clock (its APB1 is
 /// divided by two, so the timer clock is twice the bus's).
 #[derive(Debug)]
 pub struct Timer {
+    tim: &'static tim2::RegisterBlock,
     widen: Widen,
 }
 
 impl Timer {
-    /// Starts TIM2 from zero, undivided.
-    pub fn start() -> Self {
-        Reg::at(RCC, APB1ENR).modify(APB1ENR_TIM2, APB1ENR_TIM2);
-        Reg::at(TIM2, TIM_PSC).write(0);
-        Reg::at(TIM2, TIM_ARR).write(u32::MAX);
+    /// Starts TIM2 from zero, undivided. Its bus clock must be on.
+    fn start(tim: &'static tim2::RegisterBlock) -> Self {
+        tim.psc().write(|w| w.psc().set(0));
+        tim.arr().write(|w| w.arr().set(u32::MAX));
         // Update event: loads the prescaler and clears the counter.
-        Reg::at(TIM2, TIM_EGR).write(1);
-        Reg::at(TIM2, TIM_CR1).write(1);
-        Self { widen: Widen::new(Reg::at(TIM2, TIM_CNT).read()) }
+        tim.egr().write(|w| w.ug().set_bit());
+        tim.cr1().write(|w| w.cen().set_bit());
+        Self { tim, widen: Widen::new(tim.cnt().read().bits()) }
     }
 }
 
 impl Clock for Timer {
     fn now(&mut self) -> u64 {
-        self.widen.up(Reg::at(TIM2, TIM_CNT).read())
+        self.widen.up(self.tim.cnt().read().bits())
     }
 }
 
@@ -284,7 +247,7 @@ impl Clock for Timer {
 pub struct Parts {
     /// The host's UART.
     pub host: Uart,
-    /// The neighbours' UARTs.
+    /// The neighbours' UARTs, in port order.
     pub neighbours: [Uart; NEIGHBOUR_UARTS],
     /// The clock.
     pub clock: Timer,
@@ -296,36 +259,58 @@ pub struct Parts {
 
 /// Brings the board up: the core clock first, then the UARTs at their rates.
 pub fn init() -> Parts {
-    let core = start_clocks();
-    let (host, neighbours) = uarts();
-    let lights = Lights::new(Led::new(LD1_GREEN), Led::new(LD3_RED));
-    Parts { host, neighbours, clock: Timer::start(), info: board_info(core), lights }
+    // `init` runs once, first: the peripherals are there to take.
+    let Some(dp) = pac::Peripherals::take() else { exit(false) };
+    let rcc = keep(dp.RCC);
+    let core = start_clocks(rcc, keep(dp.PWR), keep(dp.FLASH));
+    rcc.ahb1enr().modify(|_, w| {
+        w.gpioaen().set_bit().gpioben().set_bit().gpiocen().set_bit().gpioden().set_bit().gpioeen().set_bit()
+    });
+    rcc.apb1enr().modify(|_, w| {
+        let w = w.tim2en().set_bit().usart2en().set_bit().usart3en().set_bit();
+        w.uart4en().set_bit().uart5en().set_bit().uart7en().set_bit()
+    });
+    rcc.apb2enr().modify(|_, w| w.usart1en().set_bit().usart6en().set_bit());
+    let (a, b, c, d, e) = (keep(dp.GPIOA), keep(dp.GPIOB), keep(dp.GPIOC), keep(dp.GPIOD), keep(dp.GPIOE));
+    alternate!(d, 7, 8, 9); // USART3: host
+    alternate!(b, 7, 6, 7); // USART1: +X
+    alternate!(d, 7, 5, 6); // USART2: -X
+    alternate!(a, 8, 0, 1); // UART4: +Y
+    alternate!(c, 8, 12); // UART5 TX: -Y
+    alternate!(d, 8, 2); // UART5 RX
+    alternate!(c, 8, 6, 7); // USART6: +Z
+    alternate!(e, 8, 7, 8); // UART7: -Z
+    let host = Uart::new(Regs::Usart(keep(dp.USART3)), HOST_APB1);
+    let neighbours = [
+        Uart::new(Regs::Usart(keep(dp.USART1)), NEIGHBOUR_APB2),
+        Uart::new(Regs::Usart(keep(dp.USART2)), NEIGHBOUR_APB1),
+        Uart::new(Regs::Uart(keep(dp.UART4)), NEIGHBOUR_APB1),
+        Uart::new(Regs::Uart(keep(dp.UART5)), NEIGHBOUR_APB1),
+        Uart::new(Regs::Usart(keep(dp.USART6)), NEIGHBOUR_APB2),
+        Uart::new(Regs::Uart(keep(dp.UART7)), NEIGHBOUR_APB1),
+    ];
+    let lights = Lights::new(Led::new(b, LD1_GREEN), Led::new(b, LD3_RED));
+    Parts { host, neighbours, clock: Timer::start(keep(dp.TIM2)), info: board_info(core), lights }
 }
 
-/// The NUCLEO-F413ZH's user LEDs (UM1974: LD1 green on PB0, LD2 blue on
-/// PB7, LD3 red on PB14). LD2's pin is USART1's RX (+X), so it stays dark.
-const LD1_GREEN: Pin = Pin(B, 0);
-const LD3_RED: Pin = Pin(B, 14);
-const BSRR: usize = 0x18;
+/// The NUCLEO-F413ZH's user LEDs on port B (UM1974: LD1 green on PB0, LD2
+/// blue on PB7, LD3 red on PB14). LD2's pin is USART1's RX (+X), so it stays
+/// dark.
+const LD1_GREEN: u8 = 0;
+const LD3_RED: u8 = 14;
 
-/// A push-pull GPIO output driving an LED, set and reset through BSRR
-/// (RM0430 7.4.7: bit n sets pin n, bit n + 16 resets it, atomically).
+/// A push-pull GPIO output on port B driving an LED, set and reset through
+/// BSRR (RM0430 7.4.7: atomic, no read-modify-write).
 #[derive(Debug)]
 pub struct Led {
-    pin: Pin,
+    gpio: &'static gpiob::RegisterBlock,
+    pin: u8,
 }
 
 impl Led {
-    fn new(pin: Pin) -> Self {
-        let Pin(port, n) = pin;
-        Reg::at(RCC, AHB1ENR).modify(1 << port, 1 << port);
-        Reg::at(GPIO + port * GPIO_STRIDE, MODER).modify(0b11 << (2 * n), 0b01 << (2 * n));
-        Self { pin }
-    }
-
-    fn bsrr(&self, value: u32) {
-        let Pin(port, _) = self.pin;
-        Reg::at(GPIO + port * GPIO_STRIDE, BSRR).write(value);
+    fn new(gpio: &'static gpiob::RegisterBlock, pin: u8) -> Self {
+        gpio.moder().modify(|_, w| w.moder(pin).output());
+        Self { gpio, pin }
     }
 }
 
@@ -335,12 +320,12 @@ impl PinErrorType for Led {
 
 impl OutputPin for Led {
     fn set_low(&mut self) -> Result<(), Infallible> {
-        self.bsrr(1 << (self.pin.1 + 16));
+        self.gpio.bsrr().write(|w| w.br(self.pin).set_bit());
         Ok(())
     }
 
     fn set_high(&mut self) -> Result<(), Infallible> {
-        self.bsrr(1 << self.pin.1);
+        self.gpio.bsrr().write(|w| w.bs(self.pin).set_bit());
         Ok(())
     }
 }
