@@ -13,7 +13,7 @@ use host_tool::render::{Initial, Layout, RenderOptions, render_sim};
 use host_tool::run_files::{
     boundary_history_csv, history_plot, imbalance, load_history_csv, loads_csv, summary_json,
 };
-use host_tool::scene::Scene;
+use host_tool::scene::{Reading, Scene, SceneFormat};
 use host_tool::{direct, reference};
 use link_proto::{Balance, SlidePolicy};
 
@@ -35,6 +35,8 @@ enum Command {
     /// List the boards on serial devices (or emulated ones) without rendering:
     /// id, firmware and protocol version, capacities, clock, baud rates and cables.
     Boards(BoardsArgs),
+    /// Write a scene (the demo, a random one, or a scene file converted) as JSON or NFF, by --out's extension.
+    Scene(SceneOutArgs),
     /// Render the same scene with the independent f64 reference renderer.
     Reference(ReferenceArgs),
     /// Render with the fixed-point kernels and the f64 reference; print the comparison as JSON.
@@ -122,8 +124,8 @@ struct BoardBenchArgs {
 
 #[derive(Args, Clone)]
 struct SceneArgs {
-    /// Scene file (JSON; schema in docs/cli.md). Without it, a random scene is made.
-    #[arg(long, value_name = "FILE.json", conflicts_with_all = ["spheres", "seed", "volume_ratio"])]
+    /// Scene file: JSON (schema in docs/cli.md), or NFF if it ends in .nff. Without it, a random scene is made.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["spheres", "seed", "volume_ratio"])]
     scene: Option<PathBuf>,
     /// Random scene: number of spheres.
     #[arg(long, value_name = "N")]
@@ -134,9 +136,17 @@ struct SceneArgs {
     /// Random scene: volume ratio of the cube the spheres are confined to, (0, 1].
     #[arg(long, value_name = "V")]
     volume_ratio: Option<f64>,
-    /// Grid size for a random scene.
-    #[arg(long, value_name = "XxYxZ", value_parser = parse_triple, default_value = "32x32x32")]
-    grid: [u16; 3],
+    /// Grid size: of a random scene [default: 32x32x32], or the one a scene is fitted into [default: chosen
+    /// from the scene].
+    #[arg(long, value_name = "XxYxZ", value_parser = parse_triple)]
+    grid: Option<[u16; 3]>,
+    /// Fit a JSON scene into the grid (scale and offset); NFF scenes always are.
+    #[arg(long, requires = "scene")]
+    fit: bool,
+    /// Leave out NFF primitives that cannot be rendered (cones, polygons), with a warning, instead of refusing
+    /// the file.
+    #[arg(long, requires = "scene")]
+    skip_unsupported: bool,
     /// Image size.
     #[arg(long, value_name = "WxH", value_parser = parse_pair, default_value = "256x256")]
     size: [u16; 2],
@@ -263,6 +273,15 @@ enum AxisChoice {
     Y,
     /// z.
     Z,
+}
+
+#[derive(Args)]
+struct SceneOutArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Where to write it: FILE.json or FILE.nff.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
 }
 
 #[derive(Args)]
@@ -418,6 +437,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => render(*args),
         Command::Boards(args) => boards(args),
+        Command::Scene(args) => scene_cmd(args),
         Command::Reference(args) => reference_cmd(args),
         Command::Compare(args) => compare_cmd(args),
         Command::Bench(BenchCommand::Board(args)) => bench_board(args),
@@ -477,7 +497,12 @@ fn usage_error(e: &clap::Error) -> ExitCode {
 /// The scene the options describe: a file, a random scene, or the built-in demo.
 fn load_scene(args: &SceneArgs) -> Result<Scene, HostError> {
     if let Some(path) = &args.scene {
-        return Scene::load(path);
+        let how = Reading { fit: args.fit, grid: args.grid, skip_unsupported: args.skip_unsupported };
+        let (scene, warnings) = Scene::read(path, &how)?;
+        for warning in warnings {
+            eprintln!("warning: {warning}");
+        }
+        return Ok(scene);
     }
     let default_demo = args.spheres.is_none() && args.seed.is_none() && args.volume_ratio.is_none();
     let (count, seed, ratio) = if default_demo {
@@ -485,7 +510,14 @@ fn load_scene(args: &SceneArgs) -> Result<Scene, HostError> {
     } else {
         (args.spheres.unwrap_or(1000), args.seed.unwrap_or(1), args.volume_ratio.unwrap_or(1.0))
     };
-    Scene::random(count, seed, ratio, args.grid)
+    Scene::random(count, seed, ratio, args.grid.unwrap_or([32; 3]))
+}
+
+fn scene_cmd(args: SceneOutArgs) -> Result<(), HostError> {
+    let format = SceneFormat::for_output(&args.out)?;
+    let scene = load_scene(&args.scene)?;
+    let text = scene.to_text(format, args.scene.size)?;
+    write_atomic(&args.out, text.as_bytes())
 }
 
 fn boards(args: BoardsArgs) -> Result<(), HostError> {

@@ -360,3 +360,29 @@ fn outputs_keep_fifos_and_symbolic_links() {
         .collect();
     assert!(stray.is_empty(), "temporary files left: {stray:?}");
 }
+
+/// A random scene written as NFF renders from its file, fitted back into
+/// the grid asked for; a scene file of another kind is refused.
+#[test]
+fn a_scene_written_as_nff_renders_from_its_file() {
+    let scratch = scratch("nff");
+    let dir = scratch.path();
+    let scene = ["--spheres", "40", "--seed", "5", "--grid", "12x12x12", "--size", "24x24"];
+    let out = host_tool(dir, &[&["scene", "--out", "s.nff"][..], &scene].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = std::fs::read_to_string(dir.join("s.nff")).unwrap();
+    assert_eq!(text.lines().filter(|l| l.starts_with("s ")).count(), 40);
+    let render = host_tool(
+        dir,
+        &[
+            "render", "--scene", "s.nff", "--grid", "12x12x12", "--size", "24x24", "--array", "2x1x1",
+            "--out", "a.png",
+        ],
+    );
+    assert!(render.status.success(), "{}", String::from_utf8_lossy(&render.stderr));
+    assert!(dir.join("a.png").is_file());
+    let wrong = host_tool(dir, &["scene", "--out", "s.txt"]);
+    assert_eq!(wrong.status.code(), Some(17));
+    assert!(String::from_utf8_lossy(&wrong.stderr).contains("written as .json or .nff"));
+    assert!(!dir.join("s.txt").exists());
+}

@@ -22,6 +22,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{HostError, input};
 
+pub mod fit;
+pub mod nff;
+
+pub use fit::fit;
+
 /// A pinhole camera.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -89,7 +94,7 @@ pub struct SphereDesc {
     pub reflect: f64,
 }
 
-fn default_ambient() -> f64 {
+pub(crate) fn default_ambient() -> f64 {
     0.3
 }
 fn default_diffuse() -> f64 {
@@ -128,14 +133,55 @@ pub struct Scene {
 fn default_grid() -> [u16; 3] {
     [32; 3]
 }
-fn default_ambient_light() -> [f64; 3] {
+pub(crate) fn default_ambient_light() -> [f64; 3] {
     [0.25; 3]
 }
 fn default_background() -> [f64; 3] {
     [0.05, 0.06, 0.1]
 }
-fn default_depth() -> u8 {
+pub(crate) fn default_depth() -> u8 {
     3
+}
+
+/// How to read a scene file.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Reading {
+    /// Fit a JSON scene into the grid (NFF scenes are always fitted).
+    pub fit: bool,
+    /// The grid to fit into; chosen from the scene when `None`.
+    pub grid: Option<[u16; 3]>,
+    /// Leave out NFF primitives that cannot be rendered, with a warning,
+    /// instead of refusing the file.
+    pub skip_unsupported: bool,
+}
+
+/// A scene file's format, from its name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SceneFormat {
+    /// JSON (docs/cli.md has the schema).
+    Json,
+    /// Haines' Neutral File Format.
+    Nff,
+}
+
+impl SceneFormat {
+    /// NFF for a `.nff` name, JSON for anything else.
+    pub fn of(path: &std::path::Path) -> SceneFormat {
+        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("nff") => SceneFormat::Nff,
+            _ => SceneFormat::Json,
+        }
+    }
+
+    /// The format a scene is written in: by the extension, `.json` or
+    /// `.nff`, anything else refused.
+    pub fn for_output(path: &std::path::Path) -> Result<SceneFormat, HostError> {
+        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("nff") => Ok(SceneFormat::Nff),
+            Some("json") => Ok(SceneFormat::Json),
+            _ => Err(input(format!("{}: a scene is written as .json or .nff", path.display()))),
+        }
+    }
 }
 
 /// Largest reflection depth accepted (bounds ray classes and credit splits).
@@ -144,8 +190,15 @@ pub const MAX_DEPTH: u8 = 8;
 pub const MAX_LIGHTS: usize = node_fw::node::MAX_LIGHTS;
 
 impl Scene {
-    /// Reads and validates a scene file.
+    /// Reads and validates a scene file: NFF if its name ends in `.nff`
+    /// (fitted into a grid chosen from it), else JSON.
     pub fn load(path: &std::path::Path) -> Result<Scene, HostError> {
+        Ok(Self::read(path, &Reading::default())?.0)
+    }
+
+    /// Reads a scene file as `how` says, validated; also returns a warning
+    /// for each primitive left out.
+    pub fn read(path: &std::path::Path, how: &Reading) -> Result<(Scene, Vec<String>), HostError> {
         let bytes = std::fs::read(path)
             .map_err(|e| HostError::Io(format!("cannot read scene {}: {e}", path.display())))?;
         // Read, but not a scene: exit 10 like any other malformed file, not 20.
@@ -156,10 +209,38 @@ impl Scene {
                 e.utf8_error().valid_up_to()
             ))
         })?;
-        let scene: Scene = serde_json::from_str(&text)
-            .map_err(|e| HostError::Malformed(format!("scene {} is not valid: {e}", path.display())))?;
+        let source = format!("scene {}", path.display());
+        let (mut scene, warnings, fit_it) = match SceneFormat::of(path) {
+            SceneFormat::Nff => {
+                let read = nff::parse(&text, &source, how.skip_unsupported)?;
+                (read.scene, read.warnings, true)
+            }
+            SceneFormat::Json => {
+                let scene: Scene = serde_json::from_str(&text)
+                    .map_err(|e| HostError::Malformed(format!("{source} is not valid: {e}")))?;
+                (scene, Vec::new(), how.fit)
+            }
+        };
+        if fit_it {
+            fit(&mut scene, how.grid)?;
+        } else if let Some(grid) = how.grid.filter(|&g| g != scene.grid) {
+            return Err(input(format!(
+                "{source} has its own grid {:?}; to render it in {grid:?}, add --fit",
+                scene.grid
+            )));
+        }
         scene.validate()?;
-        Ok(scene)
+        Ok((scene, warnings))
+    }
+
+    /// The scene as its file format: JSON or NFF (`size` is NFF's resolution).
+    pub fn to_text(&self, format: SceneFormat, size: [u16; 2]) -> Result<String, HostError> {
+        match format {
+            SceneFormat::Json => serde_json::to_string_pretty(self)
+                .map(|t| t + "\n")
+                .map_err(|e| HostError::Io(format!("cannot write the scene as JSON: {e}"))),
+            SceneFormat::Nff => Ok(nff::write(self, size)),
+        }
     }
 
     /// The paper's random scene: `count` spheres with uniformly random centres
