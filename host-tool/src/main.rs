@@ -7,11 +7,13 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use host_tool::backend::Backend;
 use host_tool::compare::compare;
 use host_tool::error::{HostError, input};
-use host_tool::output::{check_writable, png, write_all_atomic, write_atomic};
+use host_tool::output::{
+    check_png_name, check_writable, png, refuse_overwrite, write_all_atomic, write_atomic,
+};
 use host_tool::qemu::EmulatedBoard;
 use host_tool::render::{Initial, Layout, RenderOptions, render_sim};
 use host_tool::run_files::{
-    boundary_history_csv, history_plot, imbalance, load_history_csv, loads_csv, summary_json,
+    Provenance, boundary_history_csv, history_plot, imbalance, load_history_csv, loads_csv, summary_json,
 };
 use host_tool::scene::{Reading, Scene, SceneFormat};
 use host_tool::{direct, reference};
@@ -375,15 +377,16 @@ struct RenderArgs {
     /// How far a boundary moves per slide.
     #[arg(long, value_enum, default_value = "paper")]
     policy: PolicyChoice,
-    /// Load history over virtual time (per node and interval).
-    #[arg(long, value_name = "FILE.csv", default_value = "load-history.csv")]
-    load_history: PathBuf,
-    /// Boundary positions over virtual time (at the start, then per committed slide).
-    #[arg(long, value_name = "FILE.csv", default_value = "boundary-history.csv")]
-    boundary_history: PathBuf,
-    /// Plot of per-node load and boundary positions over virtual time.
-    #[arg(long, value_name = "FILE.png", default_value = "loads.png")]
-    plot: PathBuf,
+    /// Load history over virtual time (per node and interval) [default: DIR/load-history.csv].
+    #[arg(long, value_name = "FILE.csv")]
+    load_history: Option<PathBuf>,
+    /// Boundary positions over virtual time (at the start, then per committed slide)
+    /// [default: DIR/boundary-history.csv].
+    #[arg(long, value_name = "FILE.csv")]
+    boundary_history: Option<PathBuf>,
+    /// Plot of per-node load and boundary positions over virtual time [default: DIR/loads.png].
+    #[arg(long, value_name = "FILE.png")]
+    plot: Option<PathBuf>,
     /// Carry every link as bytes through the nodes' reliable channels and this
     /// fault injector: per-frame probabilities, e.g. corrupt=0.01,drop=0.01,dup=0,delay=0,seed=1.
     #[arg(long, value_name = "corrupt=P,drop=P,dup=P,delay=P", value_parser = parse_faults)]
@@ -409,15 +412,21 @@ struct RenderArgs {
     /// [default: all a node has left over].
     #[arg(long, value_name = "N")]
     shared_slots: Option<u16>,
-    /// Output image.
-    #[arg(long, value_name = "FILE.png", default_value = "render.png")]
-    out: PathBuf,
-    /// Per-node load table.
-    #[arg(long, value_name = "FILE.csv", default_value = "loads.csv")]
-    loads: PathBuf,
-    /// Run summary.
-    #[arg(long, value_name = "FILE.json", default_value = "summary.json")]
-    summary: PathBuf,
+    /// Output image [default: DIR/render.png].
+    #[arg(long, value_name = "FILE.png")]
+    out: Option<PathBuf>,
+    /// Per-node load table [default: DIR/loads.csv].
+    #[arg(long, value_name = "FILE.csv")]
+    loads: Option<PathBuf>,
+    /// Run summary [default: DIR/summary.json].
+    #[arg(long, value_name = "FILE.json")]
+    summary: Option<PathBuf>,
+    /// Directory of every file the run writes but those named by their own option (created if missing).
+    #[arg(long, value_name = "DIR", default_value = ".")]
+    out_dir: PathBuf,
+    /// Replace files an earlier run left (a run refuses to by default).
+    #[arg(long)]
+    overwrite: bool,
 }
 
 #[derive(Args)]
@@ -494,6 +503,29 @@ fn usage_error(e: &clap::Error) -> ExitCode {
     ExitCode::from(2)
 }
 
+/// The demo scene: this many random spheres from this seed, in the whole grid.
+const DEMO_SPHERES: usize = 400;
+const DEMO_SEED: u64 = 1986;
+
+/// Where the scene came from, for the run summary.
+fn scene_source(args: &SceneArgs, scene: &Scene) -> serde_json::Value {
+    let spheres = scene.spheres.len();
+    match &args.scene {
+        Some(path) => serde_json::json!({
+            "source": "file", "path": path.display().to_string(),
+            "format": match SceneFormat::of(path) { SceneFormat::Nff => "nff", SceneFormat::Json => "json" },
+            "fitted": args.fit || SceneFormat::of(path) == SceneFormat::Nff, "spheres": spheres,
+        }),
+        None if args.spheres.is_none() && args.seed.is_none() && args.volume_ratio.is_none() => {
+            serde_json::json!({"source": "demo", "spheres": spheres, "seed": DEMO_SEED, "volume_ratio": 1.0})
+        }
+        None => serde_json::json!({
+            "source": "random", "spheres": spheres, "seed": args.seed.unwrap_or(1),
+            "volume_ratio": args.volume_ratio.unwrap_or(1.0),
+        }),
+    }
+}
+
 /// The scene the options describe: a file, a random scene, or the built-in demo.
 fn load_scene(args: &SceneArgs) -> Result<Scene, HostError> {
     if let Some(path) = &args.scene {
@@ -506,7 +538,7 @@ fn load_scene(args: &SceneArgs) -> Result<Scene, HostError> {
     }
     let default_demo = args.spheres.is_none() && args.seed.is_none() && args.volume_ratio.is_none();
     let (count, seed, ratio) = if default_demo {
-        (400, 1986, 1.0)
+        (DEMO_SPHERES, DEMO_SEED, 1.0)
     } else {
         (args.spheres.unwrap_or(1000), args.seed.unwrap_or(1), args.volume_ratio.unwrap_or(1.0))
     };
@@ -611,31 +643,52 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         )));
     }
     let timeout = std::time::Duration::from_secs_f64(args.node_timeout);
+    let in_dir = |name: &str| match args.out_dir.as_path() {
+        dir if dir == std::path::Path::new(".") => PathBuf::from(name),
+        dir => dir.join(name),
+    };
+    let path = |given: &Option<PathBuf>, name: &str| given.clone().unwrap_or_else(|| in_dir(name));
+    let out = path(&args.out, "render.png");
+    let plot_path = path(&args.plot, "loads.png");
+    let loads_path = path(&args.loads, "loads.csv");
+    let summary_path = path(&args.summary, "summary.json");
+    let history_path = path(&args.load_history, "load-history.csv");
+    let boundaries_path = path(&args.boundary_history, "boundary-history.csv");
+    let outputs =
+        [&out, &plot_path, &loads_path, &summary_path, &history_path, &boundaries_path].map(PathBuf::as_path);
+    check_png_name(&out)?;
+    check_png_name(&plot_path)?;
+    if !args.overwrite {
+        refuse_overwrite(&outputs)?;
+    }
+    std::fs::create_dir_all(&args.out_dir)
+        .map_err(|e| HostError::Io(format!("cannot create --out-dir {}: {e}", args.out_dir.display())))?;
     // A run writes all of its outputs or none: a path that cannot take its
     // file is refused before the render, not after it.
-    check_writable(&[
-        &args.out,
-        &args.plot,
-        &args.loads,
-        &args.summary,
-        &args.load_history,
-        &args.boundary_history,
-    ])?;
+    check_writable(&outputs)?;
     let result = host_tool::backend::render(&scene, &opts, &backend, timeout)?;
     let f = &result.frame;
     let image = png(f.width, f.height, &f.rgb8())?;
-    let summary = summary_json(&scene, &opts, &result);
+    let from = Provenance {
+        backend: match &backend {
+            Backend::Sim => "sim".to_string(),
+            Backend::Qemu { board, .. } => format!("qemu ({})", board.name()),
+            Backend::Serial { .. } => "serial".to_string(),
+        },
+        scene: scene_source(&args.scene, &scene),
+    };
+    let summary = summary_json(&scene, &opts, &result, &from);
     let loads = loads_csv(&result);
     let history = load_history_csv(&result);
     let boundaries = boundary_history_csv(&result);
     let plot = history_plot(&result)?;
     write_all_atomic(&[
-        (&args.out, &image),
-        (&args.plot, &plot),
-        (&args.loads, loads.as_bytes()),
-        (&args.summary, summary.as_bytes()),
-        (&args.load_history, history.as_bytes()),
-        (&args.boundary_history, boundaries.as_bytes()),
+        (&out, &image),
+        (&plot_path, &plot),
+        (&loads_path, loads.as_bytes()),
+        (&summary_path, summary.as_bytes()),
+        (&history_path, history.as_bytes()),
+        (&boundaries_path, boundaries.as_bytes()),
     ])?;
     eprintln!(
         "rendered {}x{} on {}x{}x{} nodes: makespan {} {}, imbalance {:.3}, {} rays, {:.2} s -> {}",
@@ -649,7 +702,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         imbalance(&result),
         f.rays_terminated,
         result.wall.as_secs_f64(),
-        args.out.display()
+        out.display()
     );
     Ok(())
 }
@@ -658,6 +711,7 @@ fn reference_cmd(args: ReferenceArgs) -> Result<(), HostError> {
     let scene = load_scene(&args.scene)?;
     let [w, h] = args.scene.size;
     host_tool::frame::check_size(w, h)?;
+    check_png_name(&args.out)?;
     let img = reference::render(&scene, w, h);
     write_atomic(&args.out, &png(w, h, &img.rgb8())?)?;
     eprintln!("reference {w}x{h} -> {}", args.out.display());

@@ -125,3 +125,26 @@ pub fn png(width: u16, height: u16, rgb: &[u8]) -> Result<Vec<u8>, HostError> {
     .map_err(|e| HostError::Io(format!("cannot encode PNG: {e}")))?;
     Ok(out)
 }
+
+/// Refuses to replace a file an earlier run left at any of `paths` (devices
+/// such as /dev/null excepted), naming the first and the options that help.
+pub fn refuse_overwrite(paths: &[&Path]) -> Result<(), HostError> {
+    match paths.iter().find(|p| std::fs::metadata(p).is_ok_and(|m| m.is_file())) {
+        Some(p) => Err(HostError::Input(format!(
+            "{} exists, from an earlier run; add --overwrite to replace it, or write elsewhere with --out-dir DIR",
+            p.display()
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// Refuses an image name whose extension is not `.png`, the one format the
+/// host writes (PNG bytes under another name would mislead every viewer).
+pub fn check_png_name(path: &Path) -> Result<(), HostError> {
+    let png = path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if png || is_special(&resolve(path)) {
+        Ok(())
+    } else {
+        Err(HostError::Input(format!("{}: images are written as PNG; name the file .png", path.display())))
+    }
+}

@@ -174,19 +174,21 @@ impl Partition {
             let name = format!("node {id} ({},{},{})", c[0], c[1], c[2]);
             if cubes > u64::from(capacity.cubes) {
                 return Err(HostError::Capacity(format!(
-                    "{name} would span {cubes} cubes; a node holds {}",
+                    "{name} would span {cubes} cubes; a node holds {}: use more nodes (--array) or fewer \
+                     cubes (--grid)",
                     capacity.cubes
                 )));
             }
             if kept > u64::from(capacity.spheres) {
                 return Err(HostError::Capacity(format!(
-                    "{name} would hold {kept} spheres; a node holds {}",
+                    "{name} would hold {kept} spheres; a node holds {}: use more nodes (--array)",
                     capacity.spheres
                 )));
             }
             if refs > u64::from(capacity.refs) {
                 return Err(HostError::Capacity(format!(
-                    "{name} would hold {refs} sphere references; a node holds {}",
+                    "{name} would hold {refs} sphere references; a node holds {}: use more nodes (--array) \
+                     or larger cubes (a coarser --grid)",
                     capacity.refs
                 )));
             }

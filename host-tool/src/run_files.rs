@@ -43,8 +43,31 @@ pub fn imbalance(r: &RenderResult) -> f64 {
     busy.iter().cloned().fold(0.0, f64::max) / mean.max(f64::MIN_POSITIVE)
 }
 
-/// The run summary: the frame's totals, the options, the links, each node.
-pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> String {
+/// Where a run came from, for its summary.
+#[derive(Debug, Clone)]
+pub struct Provenance {
+    /// What carried the frame: `sim`, `qemu` (with the board) or `serial`.
+    pub backend: String,
+    /// The scene's source: a file, a random scene's parameters, or the demo.
+    pub scene: serde_json::Value,
+}
+
+impl Provenance {
+    /// The unit of the frame's and the nodes' times.
+    fn time_units(&self) -> serde_json::Value {
+        if self.backend == "sim" {
+            json!({"makespan": "cycles (virtual)", "running": "cycles (virtual)", "waiting": "cycles (virtual)",
+                   "busy": "cycles (virtual)", "wall_seconds": "s"})
+        } else {
+            json!({"makespan": "us (host clock)", "running": "board clock ticks (core cycles; instructions under QEMU)",
+                   "waiting": "board clock ticks (core cycles; instructions under QEMU)", "wall_seconds": "s"})
+        }
+    }
+}
+
+/// The run summary: where it came from, the frame's totals, the options, the
+/// links, each node.
+pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult, from: &Provenance) -> String {
     let f = &r.frame;
     // The in-memory board models its links and sees inside its nodes; boards
     // have links of their own, and their busy time is their own business.
@@ -81,6 +104,10 @@ pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> St
     let total = r.busy.iter().flatten().copied().sum::<Busy>();
     let waiting: u64 = f.loads.iter().flatten().map(|l| l.waiting).sum();
     let v = json!({
+        "backend": from.backend,
+        "versions": {"host_tool": env!("CARGO_PKG_VERSION"), "protocol": link_proto::PROTOCOL_VERSION},
+        "scene": from.scene,
+        "units": from.time_units(),
         "makespan": f.makespan,
         "imbalance": imbalance(r),
         "rays_created": f.rays_created,
@@ -97,6 +124,12 @@ pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult) -> St
         "queue_depth": opts.level_depth,
         "shared_slots": opts.shared_slots,
         "balance": if opts.balance.is_some() { "slide" } else { "static" },
+        "sliding": opts.balance.map(|b| json!({
+            "interval": b.interval,
+            "threshold": f64::from(b.threshold) / 65536.0,
+            "step": b.step,
+            "policy": match b.policy { link_proto::SlidePolicy::Paper => "paper", link_proto::SlidePolicy::Proportional { .. } => "proportional" },
+        })),
         "driving_axis": r.partition.driving_axis,
         "slides": f.slides.len(),
         "refused_slides": f.refused_slides.len(),

@@ -90,6 +90,14 @@ fn bad_input_is_one_line_with_its_documented_exit_code() {
         16,
         "node 0 (0,0,0) would hold",
     );
+    // A limit a setting lifts names the setting.
+    fails(
+        "capacity-hint",
+        &render(&["--spheres", "2100", "--grid", "8x8x8", "--array", "1x1x1"]),
+        None,
+        16,
+        "--array",
+    );
     fails("missing", &render(&["--scene", "nope.json"]), None, 20, "cannot read scene");
     // Readable, but not a scene: malformed (10), not unreadable (20).
     let garbage = String::from_utf8_lossy(&[0xff, 0xfe, 0x00, 0x9c, 0x80]).into_owned();
@@ -213,6 +221,45 @@ fn default_render_writes_image_loads_and_summary() {
     assert_eq!(csv.lines().count(), 9);
     let png = image::open(dir.join("render.png")).unwrap();
     assert_eq!((png.width(), png.height()), (32, 24));
+    // Where it came from, and the unit of every time.
+    assert_eq!(summary["backend"], "sim");
+    assert_eq!(summary["versions"]["protocol"], link_proto::PROTOCOL_VERSION);
+    assert_eq!(summary["scene"]["source"], "random");
+    assert_eq!(
+        (summary["scene"]["spheres"].as_u64(), summary["scene"]["seed"].as_u64()),
+        (Some(50), Some(1))
+    );
+    assert_eq!(summary["units"]["makespan"], "cycles (virtual)");
+    assert_eq!(summary["sliding"]["policy"], "paper");
+}
+
+/// A second run does not replace the first run's files unless told to;
+/// --out-dir puts every file elsewhere; an image is a .png.
+#[test]
+fn a_run_keeps_an_earlier_runs_files_unless_told() {
+    let scratch = scratch("again");
+    let dir = scratch.path();
+    let run = ["render", "--size", "16x16", "--array", "1x1x1", "--spheres", "10", "--balance", "static"];
+    assert!(host_tool(dir, &run).status.success());
+    let first = std::fs::read(dir.join("summary.json")).unwrap();
+    let again = host_tool(dir, &run);
+    assert_eq!(again.status.code(), Some(17));
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(err.contains("exists, from an earlier run; add --overwrite"), "{err}");
+    assert_eq!(
+        std::fs::read(dir.join("summary.json")).unwrap(),
+        first,
+        "the first run's summary was touched"
+    );
+    assert!(host_tool(dir, &[&run[..], &["--overwrite"]].concat()).status.success());
+    let elsewhere = host_tool(dir, &[&run[..], &["--out-dir", "runs/two"]].concat());
+    assert!(elsewhere.status.success(), "{}", String::from_utf8_lossy(&elsewhere.stderr));
+    for f in
+        ["render.png", "loads.csv", "summary.json", "load-history.csv", "boundary-history.csv", "loads.png"]
+    {
+        assert!(dir.join("runs/two").join(f).is_file(), "{f}");
+    }
+    fails("jpg", &[&run[..], &["--out", "x.jpg"]].concat(), None, 17, "images are written as PNG");
 }
 
 /// The boundary history starts from the even cut and, under the paper's
@@ -341,7 +388,19 @@ fn outputs_keep_fifos_and_symbolic_links() {
     };
     std::fs::write(dir.join("real.csv"), "old").unwrap();
     std::os::unix::fs::symlink(dir.join("real.csv"), dir.join("loads.csv")).unwrap();
-    let args = ["render", "--spheres", "20", "--size", "16x16", "--array", "2x1x1", "--plot", "plot.fifo"];
+    // The link's target holds a file already: replacing it takes --overwrite.
+    let args = [
+        "render",
+        "--spheres",
+        "20",
+        "--size",
+        "16x16",
+        "--array",
+        "2x1x1",
+        "--plot",
+        "plot.fifo",
+        "--overwrite",
+    ];
     let out = host_tool(dir, &args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let plot = reader.join().expect("reader");
