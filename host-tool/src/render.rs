@@ -432,10 +432,16 @@ fn node_errors(frame: &FrameBuffer, partition: &Partition) -> Result<(), HostErr
         return Err(restarted(peer, format!("its neighbour node {} saw it start again", e.node)));
     }
     let c = partition.coord(usize::from(e.node));
-    Err(HostError::Node(format!(
-        "node {} ({},{},{}) reported {:?} (a = {}, b = {})",
-        e.node, c[0], c[1], c[2], e.code, e.a, e.b
-    )))
+    let what = match (e.code, link_proto::Found::from_wire(e.b)) {
+        (ErrorCode::Unexpected, Some(link_proto::Found::Message(kind))) => {
+            format!("an unexpected {kind:?} message on port {}", crate::cabling::port_name(port))
+        }
+        (ErrorCode::Unexpected | ErrorCode::BadRay, Some(link_proto::Found::Site(site))) => {
+            format!("{:?} at {site:?} (a = {})", e.code, e.a)
+        }
+        _ => format!("{:?} (a = {}, b = {})", e.code, e.a, e.b),
+    };
+    Err(HostError::Node(format!("node {} ({},{},{}) reported {what}", e.node, c[0], c[1], c[2])))
 }
 
 /// Forwards to the frame buffer and shows progress once a render passes a second.

@@ -1,9 +1,12 @@
 //! Wire messages and framing for the sliding-boundary ray tracer.
 //!
 //! Every conversation of the system (host to node, node to node) is a [`Message`]
-//! carried in a [`Frame`] with a per-link sequence number. A frame travels as
-//! `COBS(postcard(frame) ++ crc32_le) ++ 0x00`, so a receiver can resynchronise on
-//! the next zero byte after garbage, and any corrupted byte is caught by the CRC.
+//! carried in a [`Frame`] with a per-link sequence number and, perhaps, an
+//! acknowledgement riding on it. A frame travels as
+//! `0x00 ++ COBS(postcard(frame) ++ [ack] ++ crc32c_le) ++ 0x00` ([`frame`]), so a
+//! receiver can resynchronise on the next zero byte after garbage, and any
+//! corrupted byte is caught by the CRC. A ray travels in a compact form of its
+//! own ([`ray_wire`]), and retirements several to a message ([`retirements`]).
 //!
 //! All numbers on the wire are plain integers: fixed-point values travel as their
 //! raw bits, with the format named in each field's documentation. The largest
@@ -19,10 +22,12 @@ pub mod frame;
 pub mod message;
 pub mod ray_wire;
 pub mod retirements;
+pub mod site;
 
 pub use board::{BoardId, BoardInfo, BoardKind, ClockSource, FirmwareVersion, PeerNote};
 pub use frame::{DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_PAYLOAD_LEN, encode_frame};
 pub use message::*;
+pub use site::{Found, Site};
 
 /// Version of the wire protocol; nodes and host exchange it in [`Hello`].
 /// Bump it whenever a message changes shape (postcard carries no field names).

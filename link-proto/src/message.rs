@@ -106,10 +106,132 @@ pub enum Message {
 }
 
 impl Message {
+    /// The message's variant.
+    pub fn kind(&self) -> MessageKind {
+        match self {
+            Message::Hello(_) => MessageKind::Hello,
+            Message::SceneBegin(_) => MessageKind::SceneBegin,
+            Message::Sphere(_) => MessageKind::Sphere,
+            Message::Light(_) => MessageKind::Light,
+            Message::SceneEnd(_) => MessageKind::SceneEnd,
+            Message::Assign(_) => MessageKind::Assign,
+            Message::RenderStart(_) => MessageKind::RenderStart,
+            Message::Ray(_) => MessageKind::Ray,
+            Message::Retire(_) => MessageKind::Retire,
+            Message::Load(_) => MessageKind::Load,
+            Message::SlideOffer(_) => MessageKind::SlideOffer,
+            Message::SlideReply(_) => MessageKind::SlideReply,
+            Message::SlideDone(_) => MessageKind::SlideDone,
+            Message::Finish(_) => MessageKind::Finish,
+            Message::Error(_) => MessageKind::Error,
+            Message::Ack(_) => MessageKind::Ack,
+            Message::Nak(_) => MessageKind::Nak,
+            Message::RayReply(_) => MessageKind::RayReply,
+            Message::Space => MessageKind::Space,
+            Message::SlideRequest(_) => MessageKind::SlideRequest,
+            Message::Sync(_) => MessageKind::Sync,
+            Message::SyncAck(_) => MessageKind::SyncAck,
+            Message::SlideNote(_) => MessageKind::SlideNote,
+            Message::Grant(_) => MessageKind::Grant,
+            Message::GrantedRay(_) => MessageKind::GrantedRay,
+            Message::Peer(_) => MessageKind::Peer,
+        }
+    }
+
     /// Whether the message carries a ray (the long messages between nodes).
     pub fn is_ray(&self) -> bool {
         matches!(self, Message::Ray(_) | Message::GrantedRay(_))
     }
+}
+
+/// A message's variant without its fields: for error reports and counters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum MessageKind {
+    /// [`Message::Hello`].
+    Hello,
+    /// [`Message::SceneBegin`].
+    SceneBegin,
+    /// [`Message::Sphere`].
+    Sphere,
+    /// [`Message::Light`].
+    Light,
+    /// [`Message::SceneEnd`].
+    SceneEnd,
+    /// [`Message::Assign`].
+    Assign,
+    /// [`Message::RenderStart`].
+    RenderStart,
+    /// [`Message::Ray`].
+    Ray,
+    /// [`Message::Retire`].
+    Retire,
+    /// [`Message::Load`].
+    Load,
+    /// [`Message::SlideOffer`].
+    SlideOffer,
+    /// [`Message::SlideReply`].
+    SlideReply,
+    /// [`Message::SlideDone`].
+    SlideDone,
+    /// [`Message::Finish`].
+    Finish,
+    /// [`Message::Error`].
+    Error,
+    /// [`Message::Ack`].
+    Ack,
+    /// [`Message::Nak`].
+    Nak,
+    /// [`Message::RayReply`].
+    RayReply,
+    /// [`Message::Space`].
+    Space,
+    /// [`Message::SlideRequest`].
+    SlideRequest,
+    /// [`Message::Sync`].
+    Sync,
+    /// [`Message::SyncAck`].
+    SyncAck,
+    /// [`Message::SlideNote`].
+    SlideNote,
+    /// [`Message::Grant`].
+    Grant,
+    /// [`Message::GrantedRay`].
+    GrantedRay,
+    /// [`Message::Peer`].
+    Peer,
+}
+
+impl MessageKind {
+    /// Every kind, in variant order.
+    pub const ALL: [MessageKind; 26] = [
+        MessageKind::Hello,
+        MessageKind::SceneBegin,
+        MessageKind::Sphere,
+        MessageKind::Light,
+        MessageKind::SceneEnd,
+        MessageKind::Assign,
+        MessageKind::RenderStart,
+        MessageKind::Ray,
+        MessageKind::Retire,
+        MessageKind::Load,
+        MessageKind::SlideOffer,
+        MessageKind::SlideReply,
+        MessageKind::SlideDone,
+        MessageKind::Finish,
+        MessageKind::Error,
+        MessageKind::Ack,
+        MessageKind::Nak,
+        MessageKind::RayReply,
+        MessageKind::Space,
+        MessageKind::SlideRequest,
+        MessageKind::Sync,
+        MessageKind::SyncAck,
+        MessageKind::SlideNote,
+        MessageKind::Grant,
+        MessageKind::GrantedRay,
+        MessageKind::Peer,
+    ];
 }
 
 /// A committed slide, as the receiving node tells the host.

@@ -5,68 +5,19 @@ use std::fmt;
 use std::collections::{BTreeMap, VecDeque};
 
 use link_proto::{BoardId, BoardInfo, BoardKind, ClockSource, Message};
-use node_fw::framed::FramedLinks;
+use node_fw::Port;
 use node_fw::reliable::{Channel, ChannelStats};
-use node_fw::{Node, Port};
 use rayon::prelude::*;
 
-use crate::cost::{Busy, CostModel, LinkModel};
-use crate::faults::{FaultRng, Faults};
-use crate::link_spec::{LinkPreset, LinkSpec};
+pub use crate::config::{SIM_INBOX, SimConfig, SimFramed, SimNode};
+use crate::cost::{Busy, LinkModel};
+use crate::faults::FaultRng;
+use crate::link_spec::LinkSpec;
 use crate::sim_links::Stamped;
 use crate::slot::Slot;
 
-/// A node's links when they are byte streams: reliable channels, window 8.
-pub type SimFramed = FramedLinks<8, SIM_INBOX>;
-
-/// The node firmware as the board runs it: 2048 spheres, 32768 sphere
-/// references, 32768 cubes (a 32^3 grid on one node) and 4096 ray slots
-/// (an 8x8x8 array with sliding needs 661 class levels at depth 3 and more).
-pub type SimNode = Node<2048, 32768, 32768, 4096>;
-
 /// Active nodes in a round from which the round runs on all cores.
 const PARALLEL_MIN_ACTIVE: usize = 32;
-
-/// Board settings.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SimConfig {
-    /// Nodes per axis.
-    pub array: [u16; 3],
-    /// Node work costs.
-    pub cost: CostModel,
-    /// Node-to-node links.
-    pub link: LinkSpec,
-    /// Node-to-host links.
-    pub host_link: LinkSpec,
-    /// When set, every link carries bytes (CRC-checked frames through the
-    /// node firmware's reliable channels) through this fault injector.
-    pub faults: Option<Faults>,
-    /// Restart node `.0` (a fresh firmware state, as after a reset) at virtual time `.1`.
-    pub restart: Option<(u16, u64)>,
-    /// Stop with [`SimError::Stalled`] when no node has sent the host anything
-    /// for this many cycles while the host waits.
-    pub watchdog: u64,
-}
-
-impl SimConfig {
-    /// Default costs and links ([`LinkPreset::default`]) for an array.
-    pub fn new(array: [u16; 3]) -> Self {
-        Self::with_links(array, LinkPreset::default())
-    }
-
-    /// Default costs and the links of `preset` for an array.
-    pub fn with_links(array: [u16; 3], preset: LinkPreset) -> Self {
-        Self {
-            array,
-            cost: CostModel { pass: preset.loop_pass(), ..CostModel::default() },
-            link: preset.neighbour(),
-            host_link: preset.host(),
-            faults: None,
-            restart: None,
-            watchdog: 200_000_000,
-        }
-    }
-}
 
 /// The host side of the board: it receives every node-to-host message.
 pub trait HostEndpoint {
@@ -581,7 +532,5 @@ fn channel_timeout(config: &SimConfig) -> u64 {
     4 * trip(&config.link).max(trip(&config.host_link)) + 2 * poll
 }
 
-/// Messages a simulated node's framed port holds until the node takes them.
-const SIM_INBOX: usize = 16;
 /// Cubes a walk through one subregion may take, for the time-out's bound.
 const WALK_CUBES: u64 = 256;

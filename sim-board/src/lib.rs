@@ -10,6 +10,7 @@
 //! on thread scheduling.
 
 pub mod board;
+pub mod config;
 pub mod cost;
 pub mod faults;
 pub mod link_spec;

@@ -4,7 +4,7 @@
 
 use node_fw::Port;
 
-use crate::board::{SimConfig, SimFramed, SimNode};
+use crate::config::{SimConfig, SimFramed, SimNode};
 use crate::cost::{Busy, LinkModel};
 use crate::faults::{FaultRng, Faults};
 use crate::sim_links::{PortState, SimLinks};

@@ -431,3 +431,26 @@ fn link_presets_change_time_not_the_image() {
         assert!(r.busy.iter().flatten().all(|b| b.polls > 0));
     }
 }
+
+#[test]
+fn a_node_names_the_check_that_failed() {
+    use link_proto::{ErrorCode, Found, Message, MessageKind, Site, SphereMsg};
+    use sim_board::{Board, SimConfig};
+    let sphere = SphereMsg {
+        id: 0,
+        center: [1 << 16; 3],
+        radius: 1 << 15,
+        material: (&node_fw::Material::default()).into(),
+    };
+    for (msg, want) in [
+        (Message::Sphere(sphere), (ErrorCode::Unexpected, Found::Site(Site::SphereOutOfPhase))),
+        (Message::Space, (ErrorCode::Unexpected, Found::Message(MessageKind::Space))),
+    ] {
+        let mut board = Board::new(SimConfig::new([1, 1, 1]));
+        board.send(0, msg);
+        let mut frame = host_tool::frame::FrameBuffer::new(1, 1, 1, 1);
+        board.run(&mut frame).expect("the node answers");
+        let e = frame.errors.first().expect("the node reported an error");
+        assert_eq!((e.code, Found::from_wire(e.b)), (want.0, Some(want.1)));
+    }
+}

@@ -2,8 +2,7 @@
 //! the spheres that touch its box, the lights), the start of a frame, and a
 //! new session's reset.
 
-use heapless::Deque;
-use link_proto::{Assign, ErrorCode, LightMsg, RenderStart, SceneHeader, SphereMsg};
+use link_proto::{Assign, ErrorCode, LightMsg, RenderStart, SceneHeader, Site, SphereMsg};
 
 use crate::cube_box::CubeBox;
 use crate::error::Error;
@@ -32,18 +31,14 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.render = None;
         self.cursor = 0;
         self.pool.clear();
-        self.outstanding = [0; 6];
-        self.replies.iter_mut().for_each(Deque::clear);
-        self.refused = [false; 6];
-        self.space_due = [false; 6];
-        self.grants_held = [0; 6];
-        self.grants_given = [0; 6];
-        self.grants_due = [0; 6];
-        self.neighbours = [false; 6];
+        for n in &mut self.ports {
+            n.forget_rays();
+            n.present = false;
+        }
         self.hello_due = true;
         // A new host session learns the cabling afresh (the cables stay).
-        for (due, peer) in self.peer_note_due.iter_mut().zip(self.peers) {
-            *due = peer.is_some();
+        for n in &mut self.ports {
+            n.note_due = n.peer.is_some();
         }
         self.error_due = None;
         self.load_due = None;
@@ -67,9 +62,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 self.spheres_seen = 0;
                 self.render = None;
                 self.pool.clear();
-                self.grants_held = [0; 6];
-                self.grants_given = [0; 6];
-                self.grants_due = [0; 6];
+                for n in &mut self.ports {
+                    (n.grants_held, n.grants_given, n.grants_due) = (0, 0, 0);
+                }
                 self.phase = Phase::Loading;
             }
             Err(e) => self.fail_with(e),
@@ -79,18 +74,19 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// This node's place in the array and its box of the grid.
     pub(super) fn take_assignment(&mut self, a: Assign) {
         if self.phase != Phase::Loading || a.driving_axis > 2 {
-            return self.fail(ErrorCode::Unexpected, 0, 0);
+            return self.fail_at(ErrorCode::Unexpected, 0, Site::AssignOutOfPhase);
         }
         let Some(id) = crate::wiring::index_of(a.coord, a.array) else {
-            return self.fail(ErrorCode::Unexpected, 0, 1);
+            return self.fail_at(ErrorCode::Unexpected, 0, Site::AssignOutsideArray);
         };
         match self.region.assign(self.grid, CubeBox { lo: a.lo, hi: a.hi }) {
             Ok(()) => {
                 // A board learns which node it is from its assignment.
                 self.id = id;
                 self.assign = Some(a);
-                self.neighbours = Port::NEIGHBOURS
-                    .map(|p| crate::wiring::neighbour_of(usize::from(id), p, a.array).is_some());
+                for (n, p) in self.ports.iter_mut().zip(Port::NEIGHBOURS) {
+                    n.present = crate::wiring::neighbour_of(usize::from(id), p, a.array).is_some();
+                }
             }
             Err(e) => self.fail_with(e),
         }
@@ -99,7 +95,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// A broadcast sphere: kept if it touches the box, counted either way.
     pub(super) fn take_sphere(&mut self, s: SphereMsg) {
         if self.phase != Phase::Loading || self.assign.is_none() {
-            return self.fail(ErrorCode::Unexpected, 0, 0);
+            return self.fail_at(ErrorCode::Unexpected, 0, Site::SphereOutOfPhase);
         }
         self.spheres_seen += 1;
         let sphere = Sphere::from_msg(&s, &self.grid);
@@ -116,7 +112,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// A light; every node holds them all.
     pub(super) fn take_light(&mut self, l: LightMsg) {
         if self.phase != Phase::Loading {
-            return self.fail(ErrorCode::Unexpected, 0, 0);
+            return self.fail_at(ErrorCode::Unexpected, 0, Site::LightOutOfPhase);
         }
         if Point::from_bits(l.position).is_err() {
             return self.fail(ErrorCode::OutOfRange, crate::error::Field::Origin as u32, 0);
@@ -129,7 +125,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// The scene is complete if the counts match what arrived.
     pub(super) fn end_scene(&mut self, spheres: u32, lights: u8) {
         if self.phase != Phase::Loading || self.assign.is_none() {
-            return self.fail(ErrorCode::Unexpected, 0, 0);
+            return self.fail_at(ErrorCode::Unexpected, 0, Site::SceneEndOutOfPhase);
         }
         if spheres != self.spheres_seen {
             return self.fail(ErrorCode::SceneCount, spheres, self.spheres_seen);
@@ -143,7 +139,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// A frame: the pool sized by class levels, the tile, the balancing.
     pub(super) fn start_render(&mut self, r: RenderStart) {
         let Some(assign) = self.assign.filter(|_| self.phase == Phase::Loaded) else {
-            return self.fail(ErrorCode::Unexpected, 0, 0);
+            return self.fail_at(ErrorCode::Unexpected, 0, Site::RenderStartOutOfPhase);
         };
         let boundaries = assign.boundaries.when_sliding(r.balance.is_some());
         let top =
@@ -153,12 +149,12 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
         // The pool starts empty, with nothing set aside. Grants neighbours
         // gave us stand: they may have started first.
-        self.grants_given = [0; 6];
-        self.grants_due = [0; 6];
+        for n in &mut self.ports {
+            (n.grants_given, n.grants_due, n.outstanding) = (0, 0, 0);
+        }
         self.render = Some(r);
         self.cursor = 0;
         self.stride = scatter_stride(tile_pixels(&r.tile));
-        self.outstanding = [0; 6];
         self.totals = Totals::default();
         let now = self.meter.last();
         self.meter.restart(now);

@@ -32,8 +32,8 @@ use heapless::{Deque, Vec};
 use link_proto::board::version_part;
 use link_proto::{
     Assign, Balance, BoardId, BoardInfo, BoardKind, Capacity, ClockSource, ErrorCode, ErrorReport,
-    FirmwareVersion, Hello, LightMsg, Message, PROTOCOL_VERSION, RayMsg, RayReply, RenderStart, Retire,
-    SceneHeader,
+    FirmwareVersion, Found, Hello, LightMsg, Message, PROTOCOL_VERSION, RayMsg, RenderStart, Retire,
+    SceneHeader, Site,
 };
 
 use crate::error::Error;
@@ -43,10 +43,12 @@ use crate::load::{IntervalClock, LoadMeter};
 use crate::pool::RayPool;
 use crate::slide::SlideState;
 use crate::subregion::Subregion;
+use neighbour::Neighbour;
 
 mod balance;
 mod broadcast;
 mod initial_rays;
+mod neighbour;
 mod passing;
 mod shade;
 mod slab;
@@ -147,27 +149,11 @@ pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> 
     /// Step through the tile's pixels (see [`scatter_stride`]).
     stride: u32,
     pool: RayPool<P>,
-    outstanding: [u8; 6],
-    replies: [Deque<RayReply, MAX_OUTSTANDING>; 6],
-    refused: [bool; 6],
-    space_due: [bool; 6],
-    /// Per neighbour port: rays the neighbour has granted us and we have not used.
-    grants_held: [u16; 6],
-    /// Per neighbour port: slots we set aside for the neighbour's rays.
-    grants_given: [u16; 6],
-    /// Per neighbour port: of those, the ones not yet told.
-    grants_due: [u16; 6],
-    /// Per neighbour port: whether the array has a node there (from the assignment).
-    neighbours: [bool; 6],
+    /// Each neighbour port's state, in port order.
+    ports: [Neighbour; 6],
     hello_due: bool,
     /// The board this node runs on, as its hellos name it.
     board: BoardInfo,
-    /// Per neighbour port: the board that said hello there.
-    peers: [Option<BoardId>; 6],
-    /// Per neighbour port: our hello is still to go.
-    peer_hello_due: [bool; 6],
-    /// Per neighbour port: the host is still to be told who is there.
-    peer_note_due: [bool; 6],
     error_due: Option<ErrorReport>,
     load_due: Option<u32>,
     meter: LoadMeter,
@@ -219,19 +205,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             cursor: 0,
             stride: 1,
             pool: RayPool::new(),
-            outstanding: [0; 6],
-            replies: [const { Deque::new() }; 6],
-            refused: [false; 6],
-            space_due: [false; 6],
-            grants_held: [0; 6],
-            grants_given: [0; 6],
-            grants_due: [0; 6],
-            neighbours: [false; 6],
+            ports: [Neighbour::NEW; 6],
             hello_due: true,
             board: UNKNOWN_BOARD,
-            peers: [None; 6],
-            peer_hello_due: [true; 6],
-            peer_note_due: [false; 6],
             error_due: None,
             load_due: None,
             meter: LoadMeter::new(),
@@ -257,7 +233,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// The board at each neighbour port (port order), as far as its hello
     /// has come.
     pub fn peers(&self) -> [Option<BoardId>; 6] {
-        self.peers
+        self.ports.each_ref().map(|n| n.peer)
     }
 
     /// This node's hello.
@@ -301,12 +277,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         !self.pool.is_empty()
             || self.creation_left()
             || self.hello_due
-            || self.peer_note_due.iter().any(|&due| due)
             || self.error_due.is_some()
             || self.load_due.is_some()
-            || self.space_due.iter().any(|&s| s)
-            || self.grants_due.iter().any(|&g| g > 0)
-            || self.replies.iter().any(|q| !q.is_empty())
+            || self.ports.iter().any(Neighbour::owes)
             || !self.control.is_empty()
             || [self.slide.outgoing.lo, self.slide.outgoing.hi].iter().flatten().any(|o| !o.done)
     }
@@ -373,6 +346,11 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
     }
 
+    /// [`Self::fail`] naming where the check failed.
+    fn fail_at(&mut self, code: ErrorCode, a: u32, at: impl Into<Found>) {
+        self.fail(code, a, at.into().to_wire());
+    }
+
     /// [`Self::fail`] with an [`Error`] value.
     fn fail_with(&mut self, error: Error) {
         let r = error.report(self.id);
@@ -397,11 +375,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             // The host's hello (also its heartbeat) needs no answer.
             (Port::Host, Message::Hello(_)) => {}
             (p, Message::Hello(h)) => {
-                if let (Some(peer), Some(due)) =
-                    (self.peers.get_mut(p.index()), self.peer_note_due.get_mut(p.index()))
-                {
-                    *peer = Some(h.board.id);
-                    *due = true;
+                if let Some(n) = self.ports.get_mut(p.index()) {
+                    n.peer = Some(h.board.id);
+                    n.note_due = true;
                 }
             }
             (Port::Host, Message::SceneBegin(header)) => self.begin_scene(header),
@@ -432,44 +408,12 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 | Message::SlideReply(_)),
             ) if p != Port::Host => match self.side_of(p) {
                 Some(side) => self.handle_slide(p, side, m),
-                None => self.fail(ErrorCode::Unexpected, port as u32, 3),
+                None => self.fail_at(ErrorCode::Unexpected, port as u32, Site::SlideOffDrivingAxis),
             },
             (p, Message::RayReply(r)) if p != Port::Host => self.take_reply(p, r),
             (p, Message::Space) if p != Port::Host => self.retry_refused(p),
-            (port, msg) => self.fail(ErrorCode::Unexpected, port as u32, 100 + kind(&msg)),
+            (port, msg) => self.fail_at(ErrorCode::Unexpected, port as u32, Found::Message(msg.kind())),
         }
-    }
-}
-
-/// A message's variant, for error reports (`b = 100 + kind`).
-fn kind(msg: &Message) -> u32 {
-    match msg {
-        Message::Hello(_) => 0,
-        Message::SceneBegin(_) => 1,
-        Message::Sphere(_) => 2,
-        Message::Light(_) => 3,
-        Message::SceneEnd(_) => 4,
-        Message::Assign(_) => 5,
-        Message::RenderStart(_) => 6,
-        Message::Ray(_) => 7,
-        Message::Retire(_) => 8,
-        Message::Load(_) => 9,
-        Message::SlideOffer(_) => 10,
-        Message::SlideReply(_) => 11,
-        Message::SlideDone(_) => 12,
-        Message::Finish(_) => 13,
-        Message::Error(_) => 14,
-        Message::Ack(_) => 15,
-        Message::Nak(_) => 16,
-        Message::RayReply(_) => 17,
-        Message::Space => 18,
-        Message::SlideRequest(_) => 19,
-        Message::Sync(_) => 20,
-        Message::SyncAck(_) => 21,
-        Message::SlideNote(_) => 22,
-        Message::Grant(_) => 23,
-        Message::GrantedRay(_) => 24,
-        Message::Peer(_) => 25,
     }
 }
 

@@ -3,7 +3,7 @@
 //! neighbour has room again. Back-pressure, never a dropped ray.
 
 use link_proto::ray_wire::{self, ORIGIN_AT_EYE};
-use link_proto::{ErrorCode, RayKind, RayMsg, RayReply};
+use link_proto::{ErrorCode, RayKind, RayMsg, RayReply, Site};
 
 use crate::link::Port;
 use crate::pool::Stage;
@@ -35,16 +35,17 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// aside for it, and nothing is answered.
     pub(super) fn admit_granted(&mut self, port: Port, ray: RayMsg) {
         let ray = self.off_the_wire(ray);
-        let Some(given) = self.grants_given.get_mut(port.index()).filter(|g| **g > 0) else {
+        let Some(given) = self.ports.get_mut(port.index()).map(|n| &mut n.grants_given).filter(|g| **g > 0)
+        else {
             // More rays than grants: a protocol violation.
-            return self.fail(ErrorCode::Unexpected, port as u32, 10);
+            return self.fail_at(ErrorCode::Unexpected, port as u32, Site::GrantedRayWithoutGrant);
         };
         *given -= 1;
         if ray.class > self.pool.top() {
             return self.fail(ErrorCode::ClassOverflow, u32::from(ray.class), u32::from(self.pool.top()));
         }
         if self.pool.admit_reserved(ray, Stage::Trace).is_err() {
-            self.fail(ErrorCode::Unexpected, port as u32, 11);
+            self.fail_at(ErrorCode::Unexpected, port as u32, Site::GrantedRayWithoutSlot);
         }
     }
 
@@ -75,8 +76,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// A neighbour grants us `n` more rays: rays held back after its
     /// refusals may go on them at once.
     pub(super) fn take_grant(&mut self, port: Port, n: u16) {
-        if let Some(held) = self.grants_held.get_mut(port.index()) {
-            *held = held.saturating_add(n);
+        if let Some(p) = self.ports.get_mut(port.index()) {
+            p.grants_held = p.grants_held.saturating_add(n);
         }
         for _ in 0..n.min(GRANT_TARGET) {
             self.retry_refused(port);
@@ -90,38 +91,27 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         if self.phase != Phase::Rendering {
             return;
         }
-        for (i, _) in self.neighbours.into_iter().enumerate().filter(|&(_, wired)| wired) {
-            let (Some(given), Some(due)) =
-                (self.grants_given.get(i).copied(), self.grants_due.get(i).copied())
-            else {
-                continue;
-            };
-            if given - due > GRANT_TARGET / 2 {
+        for n in self.ports.iter_mut().filter(|n| n.present) {
+            if n.grants_given - n.grants_due > GRANT_TARGET / 2 {
                 continue;
             }
             let mut more = 0;
-            while given + more < GRANT_TARGET && self.pool.reserve() {
+            while n.grants_given + more < GRANT_TARGET && self.pool.reserve() {
                 more += 1;
             }
-            if let (Some(g), Some(d)) = (self.grants_given.get_mut(i), self.grants_due.get_mut(i)) {
-                *g += more;
-                *d += more;
-            }
+            n.grants_given += more;
+            n.grants_due += more;
         }
     }
 
     /// Queues the reply to a ray from `port`.
     fn reply_to_ray(&mut self, port: Port, tag: u16, accepted: bool) {
         let reply = RayReply { tag, accepted };
-        let (Some(queue), Some(refused)) =
-            (self.replies.get_mut(port.index()), self.refused.get_mut(port.index()))
-        else {
-            return;
-        };
-        *refused |= !accepted;
-        if queue.push_back(reply).is_err() {
+        let Some(n) = self.ports.get_mut(port.index()) else { return };
+        n.refused |= !accepted;
+        if n.replies.push_back(reply).is_err() {
             // The neighbour exceeded MAX_OUTSTANDING: a protocol violation.
-            self.fail(ErrorCode::Unexpected, port as u32, 1);
+            self.fail_at(ErrorCode::Unexpected, port as u32, Site::TooManyOutstandingRays);
         }
     }
 
@@ -129,10 +119,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     pub(super) fn take_reply(&mut self, port: Port, reply: RayReply) {
         let sent = self.pool.is_sent(reply.tag, port);
         if !sent {
-            return self.fail(ErrorCode::Unexpected, port as u32, 2);
+            return self.fail_at(ErrorCode::Unexpected, port as u32, Site::ReplyToUnsentRay);
         }
-        if let Some(n) = self.outstanding.get_mut(port.index()) {
-            *n = n.saturating_sub(1);
+        if let Some(n) = self.ports.get_mut(port.index()) {
+            n.outstanding = n.outstanding.saturating_sub(1);
         }
         if reply.accepted {
             self.pool.remove(reply.tag);
@@ -179,16 +169,14 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
 
     /// Whether the neighbour on `port` has granted us a ray we have not used.
     fn holds_grant(&self, port: Port) -> bool {
-        self.grants_held.get(port.index()).is_some_and(|&g| g > 0)
+        self.ports.get(port.index()).is_some_and(|n| n.grants_held > 0)
     }
 
     /// A slot freed: tell every neighbour we refused that it may retry.
     pub(super) fn slot_freed(&mut self) {
-        for (refused, due) in self.refused.iter_mut().zip(self.space_due.iter_mut()) {
-            if *refused {
-                *due = true;
-                *refused = false;
-            }
+        for n in self.ports.iter_mut().filter(|n| n.refused) {
+            n.space_due = true;
+            n.refused = false;
         }
     }
 }

@@ -2,7 +2,7 @@
 //! reflection) spawned as the pool admits them, the parent retired with its
 //! own share of the credit.
 
-use link_proto::{ErrorCode, RayMsg};
+use link_proto::{ErrorCode, RayMsg, Site};
 
 use crate::geometry::Line;
 use crate::limits::Scalar;
@@ -85,12 +85,14 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         let Some(slot) = self.pool.get(i).copied() else { return };
         let Stage::Shade { mut next, children, share, rgb } = slot.stage() else { return };
         let ray = slot.ray;
-        let Ok(line) = Self::line_of(&ray) else { return self.fail(ErrorCode::BadRay, ray.pixel, 4) };
+        let Ok(line) = Self::line_of(&ray) else {
+            return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::ShadeWithoutLine);
+        };
         let Some((t, sphere)) = self.hit_sphere(&ray) else {
-            return self.fail(ErrorCode::BadRay, ray.pixel, 5);
+            return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::ShadeMissesSphere);
         };
         let Some(surface) = Surface::at(&line, t, &sphere) else {
-            return self.fail(ErrorCode::BadRay, ray.pixel, 6);
+            return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::ShadeWithoutSurface);
         };
         work.shades += 1;
         let candidates = self.scene().candidates();

@@ -2,7 +2,9 @@
 //! spheres to the lighter one, which grows its storage, takes them, and
 //! commits or refuses the slide as a whole.
 
-use link_proto::{ErrorCode, Message, SlideDone, SlideNote, SlideOffer, SlideRefusal, SlideReply, SphereMsg};
+use link_proto::{
+    ErrorCode, Message, Site, SlideDone, SlideNote, SlideOffer, SlideRefusal, SlideReply, SphereMsg,
+};
 
 use crate::link::{Links, Port};
 use crate::load::Load;
@@ -52,14 +54,14 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             Message::Sphere(s) => self.receive_slab_sphere(side, s),
             Message::SlideDone(done) => self.finish_receiving(port, side, done),
             Message::SlideReply(r) => self.slide_answered(side, r),
-            _ => self.fail(ErrorCode::Unexpected, port as u32, 4),
+            _ => self.fail_at(ErrorCode::Unexpected, port as u32, Site::SlideMessage),
         }
     }
 
     /// An offered slab: storage grows to hold it (a failure is kept, to refuse at the end).
     fn begin_receiving(&mut self, port: Port, side: Side, boundary: u16) {
         if self.slide.incoming[side].is_some() || self.slide.outgoing[side].is_some() {
-            return self.fail(ErrorCode::Unexpected, port as u32, 5);
+            return self.fail_at(ErrorCode::Unexpected, port as u32, Site::OfferDuringSlide);
         }
         self.slide.requested[side] = false;
         let d = self.driving_axis();
@@ -72,7 +74,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// One sphere of an incoming slab; on overflow the storage shrinks back.
     fn receive_slab_sphere(&mut self, side: Side, s: SphereMsg) {
         let Some(mut incoming) = self.slide.incoming[side] else {
-            return self.fail(ErrorCode::Unexpected, 0, 6);
+            return self.fail_at(ErrorCode::Unexpected, 0, Site::SlabSphereWithoutOffer);
         };
         incoming.received += 1;
         if incoming.failed.is_none() {
@@ -101,7 +103,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// The slab is complete: the box grows, or the slide is refused whole.
     fn finish_receiving(&mut self, port: Port, side: Side, done: SlideDone) {
         let Some(incoming) = self.slide.incoming[side].take() else {
-            return self.fail(ErrorCode::Unexpected, port as u32, 7);
+            return self.fail_at(ErrorCode::Unexpected, port as u32, Site::SlabEndWithoutOffer);
         };
         if incoming.received != done.spheres {
             return self.fail(ErrorCode::SceneCount, done.spheres, incoming.received);
@@ -144,7 +146,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         } else if self.slide.requested[side] {
             self.slide.requested[side] = false;
         } else {
-            self.fail(ErrorCode::Unexpected, side as u32, 8);
+            self.fail_at(ErrorCode::Unexpected, side as u32, Site::SlideReplyUnasked);
         }
     }
 

@@ -1,7 +1,7 @@
 //! Tracing: one piece of work per poll, a ray walked through the subregion
 //! by its digital line until it hits, leaves, or is done.
 
-use link_proto::{ErrorCode, HitMsg, RayKind, RayMsg};
+use link_proto::{ErrorCode, HitMsg, RayKind, RayMsg, Site};
 
 use crate::digital_line::DigitalLine;
 use crate::error::Error;
@@ -52,10 +52,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         let Some(mut ray) = self.pool.get(i).map(|s| s.ray) else { return };
         let line = match Self::line_of(&ray) {
             Ok(line) => line,
-            Err(_) => return self.fail(ErrorCode::BadRay, ray.pixel, 0),
+            Err(_) => return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::RayWithoutLine),
         };
         let Ok(mut walk) = DigitalLine::resume(&line, ray.cell.map(i32::from)) else {
-            return self.fail(ErrorCode::BadRay, ray.pixel, 1);
+            return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::RayCellOffLine);
         };
         let carried = ray.best;
         let mut best = carried.map(|h| Hit { t: Scalar::from_bits(h.t), sphere: h.sphere.id });
@@ -79,7 +79,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             Some(h) if carried.is_none_or(|c| c.t != h.t.to_bits() || c.sphere.id != h.sphere) => {
                 match self.region.sphere(h.sphere) {
                     Some(s) => Some(HitMsg { t: h.t.to_bits(), sphere: s.to_msg() }),
-                    None => return self.fail(ErrorCode::BadRay, ray.pixel, 5),
+                    None => return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::BestHitUnknown),
                 }
             }
             _ => carried,
@@ -89,7 +89,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 ray.cell = walk.cell().map(|c| c as u16);
                 match route::toward(&self.region.owned(), walk.cell(), self.driving_axis()) {
                     Some(port) => self.leave_by(port, ray.class),
-                    None => return self.fail(ErrorCode::BadRay, ray.pixel, 2),
+                    None => return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::LeavesTowardNoNeighbour),
                 }
             }
             Outcome::LeftGrid | Outcome::Clear => {
@@ -102,7 +102,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 work.shades += 1;
                 match self.begin_shading(&ray, &line, &mut spawned) {
                     Some(stage) => stage,
-                    None => return self.fail(ErrorCode::BadRay, ray.pixel, 3),
+                    None => return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::HitNotShadable),
                 }
             }
         };

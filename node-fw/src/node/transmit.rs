@@ -1,7 +1,7 @@
 //! Sending: replies, notices, rays and retirements, control messages and
 //! slabs, as far as the links take them this poll.
 
-use link_proto::{ErrorCode, LoadReport, Message, PeerNote, Retire, Retirements};
+use link_proto::{ErrorCode, LoadReport, Message, PeerNote, Retire, Retirements, Site};
 
 use crate::link::{Links, Port};
 use crate::pool::Stage;
@@ -17,7 +17,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             return;
         }
         if self.control.push_back((port, msg)).is_err() {
-            self.fail(ErrorCode::Unexpected, port as u32, 9);
+            self.fail_at(ErrorCode::Unexpected, port as u32, Site::ControlQueueFull);
         }
     }
 
@@ -59,27 +59,21 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         {
             self.error_due = None;
         }
-        for port in Port::NEIGHBOURS {
-            let p = port.index();
-            while let Some(&reply) = self.replies.get(p).and_then(|q| q.front()) {
+        for (n, port) in self.ports.iter_mut().zip(Port::NEIGHBOURS) {
+            while let Some(&reply) = n.replies.front() {
                 if !send(links, port, Message::RayReply(reply)) {
                     break;
                 }
-                if let Some(q) = self.replies.get_mut(p) {
-                    q.pop_front();
-                }
+                n.replies.pop_front();
             }
-            if let Some(due) = self.space_due.get_mut(p).filter(|due| **due) {
-                *due = !send(links, port, Message::Space);
+            if n.space_due {
+                n.space_due = !send(links, port, Message::Space);
             }
         }
         self.top_up_grants();
-        for port in Port::NEIGHBOURS {
-            let p = port.index();
-            if let Some(due) = self.grants_due.get_mut(p).filter(|due| **due > 0)
-                && send(links, port, Message::Grant(*due))
-            {
-                *due = 0;
+        for (n, port) in self.ports.iter_mut().zip(Port::NEIGHBOURS) {
+            if n.grants_due > 0 && send(links, port, Message::Grant(n.grants_due)) {
+                n.grants_due = 0;
             }
         }
         self.send_rays(links, &mut send);
@@ -119,17 +113,12 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         send: &mut impl FnMut(&mut L, Port, Message) -> bool,
     ) {
         let hello = Message::Hello(self.hello());
-        for port in Port::NEIGHBOURS {
-            let p = port.index();
-            if let Some(due) = self.peer_hello_due.get_mut(p).filter(|due| **due)
-                && links.cabled(port)
-            {
-                *due = !send(links, port, hello.clone());
+        for (n, port) in self.ports.iter_mut().zip(Port::NEIGHBOURS) {
+            if n.hello_due && links.cabled(port) {
+                n.hello_due = !send(links, port, hello.clone());
             }
-            if let (Some(due), Some(&Some(board))) =
-                (self.peer_note_due.get_mut(p).filter(|due| **due), self.peers.get(p))
-            {
-                *due = !send(links, Port::Host, Message::Peer(PeerNote { port: p as u8, board }));
+            if let Some(board) = n.peer.filter(|_| n.note_due) {
+                n.note_due = !send(links, Port::Host, Message::Peer(PeerNote { port: port as u8, board }));
             }
         }
     }
@@ -180,9 +169,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             // Whether the port can take it, before the ray is copied out.
             let Some(port) = self.pool.leaves_by(i) else { continue };
             // A ray on a grant needs no reply, so it does not wait for one.
-            let granted = self.grants_held.get(port.index()).is_some_and(|&g| g > 0) && port != Port::Host;
-            let waiting = !granted
-                && self.outstanding.get(port.index()).is_some_and(|&o| usize::from(o) >= MAX_OUTSTANDING);
+            let neighbour = self.ports.get(port.index());
+            let granted = neighbour.is_some_and(|n| n.grants_held > 0);
+            let waiting =
+                !granted && neighbour.is_some_and(|n| usize::from(n.outstanding) >= MAX_OUTSTANDING);
             let Some(port_full) = full.get_mut(port.index()).filter(|f| !**f) else { continue };
             if waiting {
                 // Replies come back only with what arrives: full for this pass.
@@ -225,8 +215,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                     }
                     // The link delivers it and the neighbour set a slot aside:
                     // the ray is theirs now.
-                    if let Some(held) = self.grants_held.get_mut(port.index()) {
-                        *held -= 1;
+                    if let Some(n) = self.ports.get_mut(port.index()) {
+                        n.grants_held -= 1;
                     }
                     self.pool.remove(i);
                     self.slot_freed();
@@ -242,8 +232,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                         }
                         continue;
                     }
-                    if let Some(out) = self.outstanding.get_mut(port.index()) {
-                        *out += 1;
+                    if let Some(n) = self.ports.get_mut(port.index()) {
+                        n.outstanding += 1;
                     }
                     self.pool.set_stage(i, Stage::Sent(port));
                     n -= 1;
