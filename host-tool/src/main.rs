@@ -374,8 +374,9 @@ struct RenderArgs {
     /// Driving axis of the sliding boundaries.
     #[arg(long, value_enum, default_value = "auto")]
     driving_axis: AxisChoice,
-    /// How far a boundary moves per slide.
-    #[arg(long, value_enum, default_value = "paper")]
+    /// How far a boundary moves per slide: proportional (the best measured on the boards' links,
+    /// docs/partition-and-sliding.md) or paper (the paper's rule).
+    #[arg(long, value_enum, default_value = "proportional")]
     policy: PolicyChoice,
     /// Load history over virtual time (per node and interval) [default: DIR/load-history.csv].
     #[arg(long, value_name = "FILE.csv")]
