@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use crate::error::{HostError, input};
-use crate::qemu::{EmulatedBoard, QemuArray};
+use crate::qemu::{EmulatedBoard, Launch, QemuArray};
 use crate::render::{
     Array, RenderOptions, RenderResult, check_frame, initial_partition, render_on, render_sim,
 };
@@ -46,7 +46,8 @@ pub fn render(
         Backend::Qemu { board, firmware } => {
             // Check the scene before starting eight emulators.
             initial_partition(scene, opts, sim_board::SimNode::capacity())?;
-            let qemu = QemuArray::launch(*board, opts.array, firmware)?;
+            let how = Launch { faults: opts.sim.faults, ..Launch::default() };
+            let qemu = QemuArray::launch_with(*board, opts.array, firmware, how)?;
             let result = render_serial(scene, opts, &qemu.ptys, false, node_timeout);
             let last_words = qemu.last_words();
             drop(qemu);
@@ -85,7 +86,8 @@ pub fn render_serial(
             format!("node {i} ({},{},{})", c[0], c[1], c[2])
         })
         .collect();
-    let mut array = SerialArray::open(ports, names, node_timeout)?;
+    // On boards the faults hit the host links (and, emulated, the relay).
+    let mut array = SerialArray::open(ports, names, node_timeout)?.with_faults(opts.sim.faults);
     array.connect()?;
     if order_ports {
         let ordered = array.order_by_cabling(opts.array)?;

@@ -390,6 +390,8 @@ struct RenderArgs {
     plot: Option<PathBuf>,
     /// Carry every link as bytes through the nodes' reliable channels and this
     /// fault injector: per-frame probabilities, e.g. corrupt=0.01,drop=0.01,dup=0,delay=0,seed=1.
+    /// On emulated boards it acts on the links between boards and to the host; on real
+    /// boards on the host links.
     #[arg(long, value_name = "corrupt=P,drop=P,dup=P,delay=P", value_parser = parse_faults)]
     faults: Option<sim_board::Faults>,
     /// Fault injection: reset node N at virtual cycle C mid-render (it must be detected).
@@ -623,10 +625,8 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         }
         BackendChoice::Serial => Backend::Serial { ports: args.ports.clone(), order_ports: args.order_ports },
     };
-    if backend != Backend::Sim && (args.faults.is_some() || args.restart_node.is_some()) {
-        return Err(input(
-            "--faults and --restart-node inject faults into the in-memory board (--backend sim)",
-        ));
+    if backend != Backend::Sim && args.restart_node.is_some() {
+        return Err(input("--restart-node restarts a node of the in-memory board (--backend sim)"));
     }
     if backend != Backend::Sim && args.links.given() {
         return Err(input(

@@ -22,6 +22,7 @@ use std::time::Duration;
 use link_proto::BoardId;
 use node_fw::Port;
 use node_fw::wiring::{coord_of, index_of, uart_ports};
+use sim_board::Faults;
 
 use crate::error::{HostError, input};
 use crate::relay::Relay;
@@ -145,6 +146,8 @@ pub struct Launch<'a> {
     pub crossed: &'a [Crossing],
     /// Log every write to the boards' user LEDs ([`QemuArray::log`]).
     pub log_lights: bool,
+    /// Faults the relay deals to the frames between the boards.
+    pub faults: Option<Faults>,
 }
 
 /// Running QEMU instances, the ptys of their host UARTs and the relay
@@ -213,7 +216,7 @@ impl QemuArray {
             said: (0..nodes).map(|_| Arc::new(Mutex::new(Vec::new()))).collect(),
             ptys: vec![String::new(); nodes],
             ids: (0..nodes).map(|i| fresh_id(i, salt)).collect(),
-            relay: Relay::new(),
+            relay: Relay::with_faults(how.faults),
             sockets,
         };
         let cable = |end: (usize, Port)| {

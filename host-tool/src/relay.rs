@@ -20,6 +20,7 @@ use std::time::{Duration, Instant};
 
 use mio::{Events, Interest, Poll, Token};
 use node_fw::Port;
+use sim_board::{Faults, FaultyStream};
 
 use crate::error::HostError;
 
@@ -43,6 +44,8 @@ type Counters = Arc<Vec<[AtomicU64; 7]>>;
 #[derive(Default)]
 pub struct Relay {
     pending: BTreeMap<LinkKey, Vec<End>>,
+    /// Faults on every byte stream the relay carries.
+    faults: Option<Faults>,
     counters: Counters,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
@@ -54,6 +57,8 @@ struct Socket {
     stream: mio::net::UnixStream,
     peer: usize,
     queue: VecDeque<u8>,
+    /// The faults dealt to what this end sends.
+    faults: Option<FaultyStream>,
     node: usize,
     port: Port,
     open: bool,
@@ -64,6 +69,14 @@ impl Relay {
     /// A relay with no links yet.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// A relay that deals `faults` to the frames it carries, on every link
+    /// end's stream its own.
+    pub fn with_faults(faults: Option<Faults>) -> Self {
+        let mut relay = Self::default();
+        relay.faults = faults;
+        relay
     }
 
     /// Adds the end of `link` at `node`'s `port`, whose emulator will
@@ -90,6 +103,7 @@ impl Relay {
                     stream: mio::net::UnixStream::from_std(stream),
                     peer,
                     queue: VecDeque::new(),
+                    faults: self.faults.map(|f| FaultyStream::new(f, end.node, end.port.index())),
                     node: end.node,
                     port: end.port,
                     open: true,
@@ -173,8 +187,16 @@ fn read_all(sockets: &mut [Socket], i: usize, buf: &mut [u8], counters: &Counter
             c.fetch_add(n as u64, Ordering::Relaxed);
         }
         let peer = s.peer;
-        if let (Some(p), Some(bytes)) = (sockets.get_mut(peer), buf.get(..n)) {
-            p.queue.extend(bytes);
+        let Some(bytes) = buf.get(..n) else { return };
+        let mut faults = s.faults.take();
+        if let Some(p) = sockets.get_mut(peer) {
+            match faults.as_mut() {
+                Some(f) => f.pass(bytes, &mut p.queue),
+                None => p.queue.extend(bytes),
+            }
+        }
+        if let Some(s) = sockets.get_mut(i) {
+            s.faults = faults;
         }
     }
 }
@@ -243,9 +265,18 @@ mod tests {
     /// A relay of the link `key` between its two listening ends, and their
     /// socket paths (in `dir`).
     fn link(dir: &std::path::Path, key: LinkKey) -> (Relay, [std::path::PathBuf; 2]) {
+        faulty_link(dir, key, None)
+    }
+
+    /// [`link`], dealing `faults`.
+    fn faulty_link(
+        dir: &std::path::Path,
+        key: LinkKey,
+        faults: Option<Faults>,
+    ) -> (Relay, [std::path::PathBuf; 2]) {
         let (lo, port, hi) = key;
         let paths = [dir.join("a.sock"), dir.join("b.sock")];
-        let mut relay = Relay::new();
+        let mut relay = Relay::with_faults(faults);
         relay.end(key, lo, port, UnixListener::bind(&paths[0]).expect("bind a"));
         relay.end(key, hi, port.opposite(), UnixListener::bind(&paths[1]).expect("bind b"));
         (relay, paths)
@@ -276,6 +307,31 @@ mod tests {
         assert!(at_a == from_b, "b's bytes reached a in order");
         assert_eq!(relay.bytes_from(0)[Port::PosX.index()], LEN as u64);
         assert_eq!(relay.bytes_from(1)[Port::NegX.index()], LEN as u64);
+    }
+
+    #[test]
+    fn a_faulty_relay_drops_whole_frames_and_keeps_the_rest_in_order() {
+        let dir = tempfile::tempdir().expect("temporary directory");
+        let faults = Faults { drop: 0.5, seed: 9, ..Faults::default() };
+        let (mut relay, [pa, pb]) = faulty_link(dir.path(), (0, Port::PosZ, 1), Some(faults));
+        let (mut a, mut b) = (UnixStream::connect(&pa).expect("a"), UnixStream::connect(&pb).expect("b"));
+        relay.join(Duration::from_secs(5)).expect("both ends connect");
+        // 100 frames of four bytes: the relay passes each whole or not at all.
+        let frames: Vec<u8> = (1..=100u8).flat_map(|i| [0, i, i, i, i, 0]).collect();
+        a.write_all(&frames).expect("written");
+        let mut got = Vec::new();
+        b.set_read_timeout(Some(Duration::from_millis(500))).expect("timeout");
+        let mut buf = [0u8; 1024];
+        while let Ok(n) = b.read(&mut buf) {
+            if n == 0 {
+                break;
+            }
+            got.extend_from_slice(&buf[..n]);
+        }
+        let kept: Vec<u8> = got.split(|&x| x == 0).filter(|f| !f.is_empty()).map(|f| f[0]).collect();
+        assert!(kept.len() > 25 && kept.len() < 75, "{} of 100 frames passed", kept.len());
+        assert!(kept.windows(2).all(|w| w[0] < w[1]), "in order");
+        assert!(got.split(|&x| x == 0).all(|f| f.is_empty() || f.len() == 4), "whole frames");
     }
 
     #[test]

@@ -14,9 +14,10 @@ use std::io::{ErrorKind, Read, Write};
 use std::time::{Duration, Instant};
 
 use link_proto::{BoardId, BoardInfo, Capacity, Hello, Message, PROTOCOL_VERSION};
+use node_fw::Port;
 use node_fw::reliable::{Channel, ChannelStats};
 use serialport::SerialPort;
-use sim_board::{HostEndpoint, RunStats};
+use sim_board::{Faults, FaultyStream, HostEndpoint, RunStats};
 
 use crate::cabling::{self, Reported};
 use crate::error::HostError;
@@ -52,6 +53,8 @@ struct Link {
     bytes_sent: u64,
     /// Frames written into the device only in part or not yet (never blocks).
     unsent: VecDeque<u8>,
+    /// Faults dealt to what the node sends and to what the host sends.
+    faults: Option<(FaultyStream, FaultyStream)>,
 }
 
 /// The array as seen through serial devices, node `i` on device `i`.
@@ -72,6 +75,17 @@ impl SerialArray {
         let links = paths.iter().map(|p| open_link(p)).collect::<Result<Vec<_>, _>>()?;
         let now = Instant::now();
         Ok(Self { links, started: now, timeout, greeted: Vec::new(), last_heartbeat: now, names })
+    }
+
+    /// Deals `faults` to every frame on the host links, both ways, each
+    /// direction of each link its own stream (no faults when `None`).
+    pub fn with_faults(mut self, faults: Option<Faults>) -> Self {
+        for (i, link) in self.links.iter_mut().enumerate() {
+            link.faults = faults.map(|f| {
+                (FaultyStream::new(f, i, Port::Host.index()), FaultyStream::new(f, i, Port::Host.index() + 1))
+            });
+        }
+        self
     }
 
     /// Waits until every node has said hello; checks versions.
@@ -229,8 +243,13 @@ impl SerialArray {
                 let node = names.get(i).cloned().unwrap_or_else(|| format!("node {i}"));
                 HostError::Node(format!("{node} on {}: the link closed ({e}); no image written", link.name))
             };
-            let bytes = read_available(link).map_err(|e| closed(e, link))?;
+            let mut bytes = read_available(link).map_err(|e| closed(e, link))?;
             moved |= !bytes.is_empty();
+            if let Some((inbound, _)) = link.faults.as_mut() {
+                let mut dealt = Vec::with_capacity(bytes.len());
+                inbound.pass(&bytes, &mut dealt);
+                bytes = dealt;
+            }
             let mut got = Vec::new();
             link.channel.receive(&bytes, |m| {
                 got.push(m);
@@ -246,11 +265,13 @@ impl SerialArray {
                     break;
                 }
             }
-            let unsent = &mut link.unsent;
+            let (unsent, faults) = (&mut link.unsent, &mut link.faults);
             link.channel.transmit(now, |frame| {
                 let room = unsent.len() + frame.len() <= TX_QUEUE;
-                if room {
-                    unsent.extend(frame);
+                match faults.as_mut() {
+                    Some((_, outbound)) if room => outbound.pass(frame, unsent),
+                    _ if room => unsent.extend(frame),
+                    _ => {}
                 }
                 room
             });
@@ -413,6 +434,7 @@ fn open_link(path: &str) -> Result<Link, HostError> {
         outbox: VecDeque::new(),
         hello: None,
         peers: [None; 6],
+        faults: None,
         bytes_sent: 0,
         unsent: VecDeque::new(),
     })

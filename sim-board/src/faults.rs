@@ -1,6 +1,9 @@
-//! The fault injector beside the board's links (after smoltcp's): per frame,
-//! from a seeded generator per link end, a byte corrupted, the frame dropped,
-//! duplicated or delayed.
+//! The fault injector beside the links (after smoltcp's): per frame, from a
+//! seeded generator per link end, a byte corrupted, the frame dropped,
+//! duplicated or delayed. The in-memory board applies it to the frames on
+//! its wires; [`FaultyStream`] applies it to any byte stream of frames (the
+//! emulated boards' relay, a serial port), so `--faults` reaches every
+//! transport.
 
 /// Fault probabilities, each per frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -84,6 +87,54 @@ impl FaultRng {
     }
 }
 
+/// The faults on a byte stream of frames, whatever carries it. Bytes are cut
+/// into frames at each zero (the frame delimiter, [`link_proto::frame`]) and
+/// each frame meets its [`FaultRng::fate`]; a delayed frame goes out after
+/// the next one. Bytes of a frame not yet ended wait for its end.
+#[derive(Debug, Clone)]
+pub struct FaultyStream {
+    faults: Faults,
+    rng: FaultRng,
+    partial: Vec<u8>,
+    held: Option<Vec<u8>>,
+}
+
+impl FaultyStream {
+    /// The stream leaving link end `(node, port)`.
+    pub fn new(faults: Faults, node: usize, port: usize) -> Self {
+        Self { faults, rng: FaultRng::new(faults.seed, node, port), partial: Vec::new(), held: None }
+    }
+
+    /// Passes `bytes` on into `out`, with the faults.
+    pub fn pass(&mut self, bytes: &[u8], out: &mut impl Extend<u8>) {
+        for &b in bytes {
+            self.partial.push(b);
+            if b != 0 {
+                continue;
+            }
+            let segment = std::mem::take(&mut self.partial);
+            // A lone delimiter is the gap between two frames.
+            if segment.len() == 1 {
+                out.extend(segment);
+                continue;
+            }
+            let fate = self.rng.fate(&self.faults, &segment);
+            for _ in 0..fate.copies {
+                if fate.delayed && self.held.is_none() {
+                    self.held = Some(fate.bytes.clone());
+                } else {
+                    out.extend(fate.bytes.iter().copied());
+                }
+            }
+            if !fate.delayed
+                && let Some(late) = self.held.take()
+            {
+                out.extend(late);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -98,6 +149,25 @@ mod tests {
                 (fate.copies == 0, fate.copies > 0 && fate.bytes != [0xA5; 8])
             })
             .collect()
+    }
+
+    #[test]
+    fn a_stream_without_faults_passes_every_byte_and_one_with_them_loses_whole_frames() {
+        let frames: Vec<u8> = (1..=200u8).flat_map(|i| [0, i, i, i, 0]).collect();
+        let mut out = Vec::new();
+        FaultyStream::new(Faults::default(), 0, 0).pass(&frames, &mut out);
+        assert_eq!(out, frames);
+        let faults = Faults { drop: 0.3, seed: 3, ..Faults::default() };
+        let mut out = Vec::new();
+        let mut stream = FaultyStream::new(faults, 0, 0);
+        // In pieces, as a socket delivers them.
+        for piece in frames.chunks(7) {
+            stream.pass(piece, &mut out);
+        }
+        let kept: Vec<u8> = out.split(|&b| b == 0).filter(|f| !f.is_empty()).map(|f| f[0]).collect();
+        assert!(kept.len() > 100 && kept.len() < 180, "{} of 200 frames kept", kept.len());
+        assert!(kept.windows(2).all(|w| w[0] < w[1]), "whole frames, in order");
+        assert!(out.split(|&b| b == 0).all(|f| f.is_empty() || f.len() == 3), "no frame cut short");
     }
 
     #[test]

@@ -19,5 +19,5 @@ mod slot;
 
 pub use board::{Board, HostEndpoint, RunStats, SimConfig, SimError, SimNode, progresses};
 pub use cost::{Busy, CostModel, LinkModel};
-pub use faults::Faults;
+pub use faults::{Faults, FaultyStream};
 pub use link_spec::{LinkPreset, LinkSpec, Transfer};

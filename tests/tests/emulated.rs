@@ -320,3 +320,29 @@ fn a_panicking_board_says_where_and_the_host_passes_it_on() {
     let text = err.to_string();
     assert!(text.contains("node firmware panicked at src/bin/fault_check.rs:"), "{text}");
 }
+
+/// The fault injector that the in-memory board uses, on the emulated
+/// boards' links: every frame between the boards and to the host may be
+/// corrupted, dropped, duplicated or delayed, and the image is the clean one.
+#[test]
+fn emulated_boards_under_link_faults_render_the_clean_image() {
+    let _one = one_array();
+    let board = EmulatedBoard::Mps2An385;
+    let s = scene();
+    let clean = render_sim(&s, &options(None)).expect("in-memory render");
+    let mut opts = options(None);
+    opts.sim.faults = Some(sim_board::Faults { corrupt: 0.02, drop: 0.02, dup: 0.01, delay: 0.01, seed: 11 });
+    let backend = Backend::Qemu { board, firmware: firmware(board) };
+    let started = std::time::Instant::now();
+    let faulty =
+        render(&s, &opts, &backend, Duration::from_secs(30)).unwrap_or_else(|e| panic!("render: {e}"));
+    eprintln!(
+        "mps2-an385 2x2x2 under faults: {:.1} s, host links {:?}",
+        started.elapsed().as_secs_f64(),
+        faulty.links
+    );
+    assert!(faulty.frame.sums == clean.frame.sums, "the faults changed the image");
+    assert_eq!(faulty.frame.rays_created, faulty.frame.rays_terminated, "every ray accounted for");
+    // The faults happened: the host's channels saw damaged frames and resent.
+    assert!(faulty.links.corrupted > 0 && faulty.links.retransmitted > 0, "{:?}", faulty.links);
+}
