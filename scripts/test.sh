@@ -58,14 +58,14 @@ scripts/firmware.sh
 step "node-fw's dependencies on $THUMB are all no_std"
 scripts/check-no-std.sh "$THUMB"
 
-step "the paper's experiments, reduced (host-tool bench paper --quick)"
-cargo run --release --locked -p host-tool -- bench paper --quick --out target/paper-quick
+step "the paper's experiments, reduced (lab bench paper --quick)"
+cargo run --release --locked -p lab -- bench paper --quick --out target/paper-quick
 
-step "efficiency and messaging share at S = 1, 8, 27 (host-tool bench scaling --quick)"
-cargo run --release --locked -p host-tool -- bench scaling --quick --out target/scaling-quick
+step "efficiency and messaging share at S = 1, 8, 27 (lab bench scaling --quick)"
+cargo run --release --locked -p lab -- bench scaling --quick --out target/scaling-quick
 
-step "error against run time of the arithmetic variants, reduced (host-tool report numerics --quick)"
-cargo run --release --locked -p host-tool -- report numerics --quick --out target/numerics-quick
+step "error against run time of the arithmetic variants, reduced (lab report numerics --quick)"
+cargo run --release --locked -p lab -- report numerics --quick --out target/numerics-quick
 
 step "tests"
 cargo test --workspace --locked

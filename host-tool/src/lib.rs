@@ -3,6 +3,7 @@
 //! pixel contributions into images, and drives runs on the in-memory board.
 //! An independent f64 renderer ([`mod@reference`]) checks the fixed-point image.
 
+pub mod args;
 pub mod backend;
 pub mod boards;
 pub mod cabling;
@@ -16,9 +17,7 @@ pub mod fit;
 pub mod frame;
 pub mod history;
 pub mod links;
-pub mod numerics;
 pub mod output;
-pub mod paper;
 pub mod partition;
 pub mod plot;
 pub mod qemu;
@@ -26,7 +25,6 @@ pub mod reference;
 pub mod relay;
 pub mod render;
 pub mod run_files;
-pub mod scaling;
 pub mod scene;
 pub mod serial;
 

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use host_tool::args::{LinkArgs, SceneArgs, load_scene, parse_triple, scene_source, usage_error};
 use host_tool::backend::Backend;
 use host_tool::compare::compare;
 use host_tool::error::{HostError, input};
@@ -11,11 +12,11 @@ use host_tool::output::{
     check_png_name, check_writable, png, refuse_overwrite, write_all_atomic, write_atomic,
 };
 use host_tool::qemu::EmulatedBoard;
-use host_tool::render::{Initial, Layout, RenderOptions, render_sim};
+use host_tool::render::{Initial, Layout, RenderOptions};
 use host_tool::run_files::{
     Provenance, boundary_history_csv, history_plot, imbalance, load_history_csv, loads_csv, summary_json,
 };
-use host_tool::scene::{Reading, Scene, SceneFormat};
+use host_tool::scene::SceneFormat;
 use host_tool::{direct, reference};
 use link_proto::{Balance, SlidePolicy};
 
@@ -43,187 +44,6 @@ enum Command {
     Reference(ReferenceArgs),
     /// Render with the fixed-point kernels and the f64 reference; print the comparison as JSON.
     Compare(SceneArgs),
-    /// Benchmarks.
-    #[command(subcommand)]
-    Bench(BenchCommand),
-    /// Reports on the arithmetic.
-    #[command(subcommand)]
-    Report(ReportCommand),
-}
-
-#[derive(Subcommand)]
-enum ReportCommand {
-    /// The stiff and extreme cases of the numerics notes: a Markdown table of
-    /// what each must do and what it did (docs/arithmetic.md shows it). Exits 4 if any fails.
-    Stiff {
-        /// Also write the table here.
-        #[arg(long, value_name = "FILE.md")]
-        out: Option<PathBuf>,
-    },
-    /// Error against run time of arithmetic variants (fixed point, f32) against
-    /// the f64 reference: CSV, Markdown table and a Pareto plot.
-    Numerics {
-        /// Output directory.
-        #[arg(long, value_name = "DIR", default_value = "numerics")]
-        out: PathBuf,
-        /// One small scene (for CI).
-        #[arg(long)]
-        quick: bool,
-    },
-}
-
-#[derive(Subcommand)]
-enum BenchCommand {
-    /// Host rays/s of the in-memory board at several array sizes, and of a plain
-    /// single-threaded loop over the same kernels (the node machinery's overhead).
-    Board(BoardBenchArgs),
-    /// The paper's experiments (Figs. 7-10): CSV tables and PNG plots.
-    Paper(PaperArgs),
-    /// Efficiency E = T(1) / (S T(S)) and where the busy cycles go, for
-    /// S = 1, 8, 27, 64, 216, 512 on the in-memory board: a table, CSV and PNG.
-    Scaling(ScalingArgs),
-}
-
-#[derive(Args)]
-struct ScalingArgs {
-    #[command(flatten)]
-    scene: SceneArgs,
-    #[command(flatten)]
-    links: LinkArgs,
-    /// Output directory.
-    #[arg(long, value_name = "DIR", default_value = "scaling")]
-    out: PathBuf,
-    /// S = 1, 8 and 27 only (for CI).
-    #[arg(long)]
-    quick: bool,
-}
-
-#[derive(Args)]
-struct PaperArgs {
-    /// Output directory.
-    #[arg(long, value_name = "DIR", default_value = "paper")]
-    out: PathBuf,
-    /// A reduced run (a minute or two) for CI.
-    #[arg(long)]
-    quick: bool,
-    /// Seed of the random scenes (1986 by default, the paper's year): rerun
-    /// with others to see how far the results depend on one scene.
-    #[arg(long, value_name = "N", default_value_t = 1986)]
-    seed: u64,
-}
-
-#[derive(Args)]
-struct BoardBenchArgs {
-    #[command(flatten)]
-    scene: SceneArgs,
-    /// Arrays to run, comma-separated.
-    #[arg(long, value_name = "XxYxZ,...", default_value = "1x1x1,2x2x2,4x4x4,8x8x8")]
-    arrays: String,
-    /// Runs per configuration (the best is reported).
-    #[arg(long, default_value_t = 1)]
-    repeat: u32,
-}
-
-#[derive(Args, Clone)]
-struct SceneArgs {
-    /// Scene file: JSON (schema in docs/cli.md), or NFF if it ends in .nff. Without it, a random scene is made.
-    #[arg(long, value_name = "FILE", conflicts_with_all = ["spheres", "seed", "volume_ratio"])]
-    scene: Option<PathBuf>,
-    /// Random scene: number of spheres.
-    #[arg(long, value_name = "N")]
-    spheres: Option<usize>,
-    /// Random scene: seed.
-    #[arg(long, value_name = "S")]
-    seed: Option<u64>,
-    /// Random scene: volume ratio of the cube the spheres are confined to, (0, 1].
-    #[arg(long, value_name = "V")]
-    volume_ratio: Option<f64>,
-    /// Grid size: of a random scene [default: 32x32x32], or the one a scene is fitted into [default: chosen
-    /// from the scene].
-    #[arg(long, value_name = "XxYxZ", value_parser = parse_triple)]
-    grid: Option<[u16; 3]>,
-    /// Fit a JSON scene into the grid (scale and offset); NFF scenes always are.
-    #[arg(long, requires = "scene")]
-    fit: bool,
-    /// Leave out NFF primitives that cannot be rendered (cones, polygons), with a warning, instead of refusing
-    /// the file.
-    #[arg(long, requires = "scene")]
-    skip_unsupported: bool,
-    /// Image size.
-    #[arg(long, value_name = "WxH", value_parser = parse_pair, default_value = "256x256")]
-    size: [u16; 2],
-}
-
-/// The links of the in-memory board: a preset, and settings that override it.
-#[derive(Args, Clone)]
-struct LinkArgs {
-    /// Links of the in-memory board: f413 (NUCLEO-F413ZH boards: 100 MHz,
-    /// neighbour USARTs at 3.125 Mbaud, host at 921 600 baud, a byte interrupt),
-    /// ideal (25 cycles a byte, no CPU per byte) or emulated (the QEMU
-    /// boards: polled UARTs, the loop's pass charged) [default: f413].
-    #[arg(long, value_name = "PRESET", value_parser = host_tool::links::preset_named)]
-    link: Option<sim_board::LinkPreset>,
-    /// Core clock of the nodes, MHz (overrides the preset's).
-    #[arg(long, value_name = "MHZ")]
-    clock_mhz: Option<f64>,
-    /// Line rate of the neighbour links, baud (10 bits a byte).
-    #[arg(long, value_name = "BAUD")]
-    baud: Option<u64>,
-    /// Line rate of the host links, baud.
-    #[arg(long, value_name = "BAUD")]
-    host_baud: Option<u64>,
-    /// How the nodes move bytes between UARTs and memory (CPU cycles a byte).
-    #[arg(long, value_enum)]
-    transfer: Option<TransferChoice>,
-}
-
-impl LinkArgs {
-    /// Whether any link setting was given.
-    fn given(&self) -> bool {
-        self.link.is_some()
-            || self.clock_mhz.is_some()
-            || self.baud.is_some()
-            || self.host_baud.is_some()
-            || self.transfer.is_some()
-    }
-
-    /// Sets `opts`'s links.
-    fn apply(&self, opts: &mut RenderOptions) -> Result<(), HostError> {
-        let clock_hz = match self.clock_mhz {
-            Some(mhz) if !mhz.is_finite() => {
-                return Err(HostError::NonFinite(format!("--clock-mhz must be a number, got {mhz}")));
-            }
-            Some(mhz) => Some((mhz * 1e6).round().clamp(0.0, u64::MAX as f64) as u64),
-            None => None,
-        };
-        let choice = host_tool::links::LinkChoice {
-            preset: self.link.unwrap_or_default(),
-            clock_hz,
-            baud: self.baud,
-            host_baud: self.host_baud,
-            transfer: self.transfer.map(|t| match t {
-                TransferChoice::Polled => sim_board::Transfer::Polled,
-                TransferChoice::Interrupt => sim_board::Transfer::Interrupt,
-                TransferChoice::Dma => sim_board::Transfer::Dma,
-            }),
-        };
-        let (link, host) = choice.specs()?;
-        opts.sim.link = link;
-        opts.sim.host_link = host;
-        opts.sim.cost.pass = choice.preset.loop_pass();
-        opts.link_preset = choice.preset;
-        Ok(())
-    }
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum TransferChoice {
-    /// The main loop polls each UART (16 cycles a byte).
-    Polled,
-    /// An interrupt per byte (50 cycles a byte).
-    Interrupt,
-    /// DMA (no CPU cycles per byte).
-    Dma,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -452,27 +272,6 @@ fn main() -> ExitCode {
         Command::Scene(args) => scene_cmd(args),
         Command::Reference(args) => reference_cmd(args),
         Command::Compare(args) => compare_cmd(args),
-        Command::Bench(BenchCommand::Board(args)) => bench_board(args),
-        Command::Report(ReportCommand::Numerics { out, quick }) => numerics_report(&out, quick),
-        Command::Report(ReportCommand::Stiff { out }) => {
-            let (table, pass) = host_tool::numerics::stiff_table::markdown();
-            print!("{table}");
-            match out {
-                Some(path) => write_atomic(&path, table.as_bytes()),
-                None => Ok(()),
-            }
-            .and_then(|()| if pass { Ok(()) } else { Err(HostError::Node("a stiff case failed".into())) })
-        }
-        Command::Bench(BenchCommand::Scaling(args)) => bench_scaling(args),
-        Command::Bench(BenchCommand::Paper(args)) => {
-            let cfg = if args.quick {
-                host_tool::paper::PaperConfig::quick()
-            } else {
-                host_tool::paper::PaperConfig::full()
-            };
-            let cfg = host_tool::paper::PaperConfig { seed: args.seed, ..cfg };
-            host_tool::paper::bench_paper(&cfg, &args.out).map(|report| print!("{report}"))
-        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -481,71 +280,6 @@ fn main() -> ExitCode {
             ExitCode::from(e.exit_code() as u8)
         }
     }
-}
-
-/// Help and version go to stdout as clap writes them. A usage error leads
-/// with the one line that says what is wrong, then clap's tip and its pointer
-/// to `--help`, without the usage block and blank lines between; exit 2.
-fn usage_error(e: &clap::Error) -> ExitCode {
-    use clap::error::ErrorKind;
-    if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion)
-        || e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
-    {
-        let _ = e.print();
-        let code = if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand { 2 } else { 0 };
-        return ExitCode::from(code);
-    }
-    let text = e.render().to_string();
-    let mut lines = text.lines().map(str::trim_end).filter(|l| !l.trim().is_empty());
-    let what = lines.next().unwrap_or("error: bad command line");
-    eprintln!("{what}");
-    for line in lines.filter(|l| l.trim_start().starts_with("tip:") || l.starts_with("For more information"))
-    {
-        eprintln!("{line}");
-    }
-    ExitCode::from(2)
-}
-
-/// The demo scene: this many random spheres from this seed, in the whole grid.
-const DEMO_SPHERES: usize = 400;
-const DEMO_SEED: u64 = 1986;
-
-/// Where the scene came from, for the run summary.
-fn scene_source(args: &SceneArgs, scene: &Scene) -> serde_json::Value {
-    let spheres = scene.spheres.len();
-    match &args.scene {
-        Some(path) => serde_json::json!({
-            "source": "file", "path": path.display().to_string(),
-            "format": match SceneFormat::of(path) { SceneFormat::Nff => "nff", SceneFormat::Json => "json" },
-            "fitted": args.fit || SceneFormat::of(path) == SceneFormat::Nff, "spheres": spheres,
-        }),
-        None if args.spheres.is_none() && args.seed.is_none() && args.volume_ratio.is_none() => {
-            serde_json::json!({"source": "demo", "spheres": spheres, "seed": DEMO_SEED, "volume_ratio": 1.0})
-        }
-        None => serde_json::json!({
-            "source": "random", "spheres": spheres, "seed": args.seed.unwrap_or(1),
-            "volume_ratio": args.volume_ratio.unwrap_or(1.0),
-        }),
-    }
-}
-
-/// The scene the options describe: a file, a random scene, or the built-in demo.
-fn load_scene(args: &SceneArgs) -> Result<Scene, HostError> {
-    if let Some(path) = &args.scene {
-        let how = Reading { fit: args.fit, grid: args.grid, skip_unsupported: args.skip_unsupported };
-        let (scene, warnings) = Scene::read(path, &how)?;
-        for warning in warnings {
-            eprintln!("warning: {warning}");
-        }
-        return Ok(scene);
-    }
-    let default_demo = args.spheres.is_none() && args.seed.is_none() && args.volume_ratio.is_none();
-    let (count, seed, ratio) = if default_demo {
-        (DEMO_SPHERES, DEMO_SEED, 1.0)
-    } else {
-        (args.spheres.unwrap_or(1000), args.seed.unwrap_or(1), args.volume_ratio.unwrap_or(1.0))
-    };
-    Scene::random(count, seed, ratio, args.grid.unwrap_or([32; 3]))
 }
 
 fn scene_cmd(args: SceneOutArgs) -> Result<(), HostError> {
@@ -611,7 +345,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         }
         let policy = match args.policy {
             PolicyChoice::Paper => SlidePolicy::Paper,
-            PolicyChoice::Proportional => host_tool::paper::PROPORTIONAL,
+            PolicyChoice::Proportional => host_tool::render::PROPORTIONAL,
         };
         let threshold = (args.threshold * 65536.0).round() as u32;
         opts.balance = Some(Balance { interval: args.interval, threshold, step: 1, policy });
@@ -732,92 +466,6 @@ fn compare_cmd(args: SceneArgs) -> Result<(), HostError> {
     Ok(())
 }
 
-fn bench_board(args: BoardBenchArgs) -> Result<(), HostError> {
-    let mut scene_args = args.scene.clone();
-    if scene_args.scene.is_none() && scene_args.spheres.is_none() {
-        scene_args.spheres = Some(1000);
-    }
-    let scene = load_scene(&scene_args)?;
-    let [w, h] = scene_args.size;
-    let arrays: Vec<[u16; 3]> =
-        args.arrays.split(',').map(parse_triple).collect::<Result<_, _>>().map_err(input)?;
-    println!("{{\"size\": [{w}, {h}], \"spheres\": {}, \"runs\": [", scene.spheres.len());
-    let best = |f: &mut dyn FnMut() -> Result<(f64, u64), HostError>| -> Result<(f64, u64), HostError> {
-        let mut out = (f64::INFINITY, 0);
-        for _ in 0..args.repeat.max(1) {
-            let (t, rays) = f()?;
-            out = (out.0.min(t), rays);
-        }
-        Ok(out)
-    };
-    let (t_direct, rays) = best(&mut || {
-        let start = std::time::Instant::now();
-        let img = direct::render(&scene, w, h)?;
-        Ok((start.elapsed().as_secs_f64(), img.rays))
-    })?;
-    let direct_rate = rays as f64 / t_direct;
-    println!(
-        "  {{\"config\": \"single loop\", \"nodes\": 1, \"rays\": {rays}, \"seconds\": {t_direct:.3}, \"rays_per_s\": {direct_rate:.0}}},"
-    );
-    for (i, array) in arrays.iter().enumerate() {
-        let mut opts = RenderOptions::new(*array);
-        opts.size = scene_args.size;
-        let (t, rays) = best(&mut || {
-            let r = render_sim(&scene, &opts)?;
-            Ok((r.wall.as_secs_f64(), r.frame.rays_terminated))
-        })?;
-        let rate = rays as f64 / t;
-        let nodes: u32 = array.iter().map(|&n| u32::from(n)).product();
-        let sep = if i + 1 < arrays.len() { "," } else { "" };
-        println!(
-            "  {{\"config\": \"board {}x{}x{}\", \"nodes\": {nodes}, \"rays\": {rays}, \"seconds\": {t:.3}, \"rays_per_s\": {rate:.0}, \"single_loop_over_board\": {:.2}}}{sep}",
-            array[0],
-            array[1],
-            array[2],
-            direct_rate / rate
-        );
-    }
-    println!("]}}");
-    Ok(())
-}
-
-fn bench_scaling(args: ScalingArgs) -> Result<(), HostError> {
-    let mut scene_args = args.scene.clone();
-    if scene_args.scene.is_none() && scene_args.spheres.is_none() {
-        // The scene: the paper's 1000 random spheres, seed 1986.
-        scene_args.spheres = Some(1000);
-        scene_args.seed = scene_args.seed.or(Some(1986));
-    }
-    let scene = load_scene(&scene_args)?;
-    let mut base = RenderOptions::new([1, 1, 1]);
-    base.size = scene_args.size;
-    args.links.apply(&mut base)?;
-    let cfg = if args.quick {
-        host_tool::scaling::ScalingConfig::quick(base)
-    } else {
-        host_tool::scaling::ScalingConfig::full(base)
-    };
-    let table = host_tool::scaling::bench_scaling(&scene, &cfg, &args.out)?;
-    print!("{table}");
-    Ok(())
-}
-
-fn numerics_report(out: &std::path::Path, quick: bool) -> Result<(), HostError> {
-    let grid = [32; 3];
-    let mut scenes = vec![("demo".to_string(), Scene::random(400, 1986, 1.0, grid)?)];
-    let size = if quick {
-        [48, 48]
-    } else {
-        for seed in [1, 2] {
-            scenes.push((format!("1000 spheres, seed {seed}"), Scene::random(1000, seed, 1.0, grid)?));
-        }
-        [128, 128]
-    };
-    let md = host_tool::numerics::variants::report(&scenes, size, out)?;
-    print!("{md}");
-    Ok(())
-}
-
 fn parse_faults(s: &str) -> Result<sim_board::Faults, String> {
     let mut f = sim_board::Faults { seed: 1, ..Default::default() };
     for part in s.split(',').filter(|p| !p.is_empty()) {
@@ -847,24 +495,4 @@ fn parse_restart(s: &str) -> Result<(u16, u64), String> {
     let node = node.parse().map_err(|_| format!("node '{node}' is not a whole number"))?;
     let at = at.parse().map_err(|_| format!("cycle '{at}' is not a whole number"))?;
     Ok((node, at))
-}
-
-fn parse_triple(s: &str) -> Result<[u16; 3], String> {
-    let parts: Vec<&str> = s.split('x').collect();
-    match parts.as_slice() {
-        [a, b, c] => Ok([num(a)?, num(b)?, num(c)?]),
-        _ => Err(format!("expected XxYxZ such as 4x4x4, got '{s}'")),
-    }
-}
-
-fn parse_pair(s: &str) -> Result<[u16; 2], String> {
-    let parts: Vec<&str> = s.split('x').collect();
-    match parts.as_slice() {
-        [a, b] => Ok([num(a)?, num(b)?]),
-        _ => Err(format!("expected WxH such as 256x256, got '{s}'")),
-    }
-}
-
-fn num(s: &str) -> Result<u16, String> {
-    s.trim().parse::<u16>().map_err(|_| format!("'{s}' is not a whole number from 0 to 65535"))
 }

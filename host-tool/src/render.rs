@@ -85,6 +85,12 @@ impl Layout {
 /// preview still takes milliseconds.
 pub const PREVIEW_STRIDE: u16 = 2;
 
+/// The proportional policy's settings: gamma 4 (ALL's stable choice), a 15% dead band
+/// (at 10% two of the 16 `bench paper` configurations moved over 1% of their
+/// boundaries per interval in steady state; see docs/partition-and-sliding.md).
+pub const PROPORTIONAL: link_proto::SlidePolicy =
+    link_proto::SlidePolicy::Proportional { gamma: 4 << 16, deadband: 9830 };
+
 /// How to render.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RenderOptions {

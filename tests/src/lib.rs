@@ -1,5 +1,5 @@
 //! Integration tests across crates. The references they check against live in
-//! [`host_tool::numerics`] (independent of the kernels under test), so the
+//! [`lab::numerics`] (independent of the kernels under test), so the
 //! host tool can regenerate the stiff-case table from the same code.
 
-pub use host_tool::numerics::{exact_sphere, quantise, rational_walk, stiff};
+pub use lab::numerics::{exact_sphere, quantise, rational_walk, stiff};

@@ -91,7 +91,7 @@ fn faults_with_sliding_keep_the_image_over_arrays_axes_and_intervals() {
         let policy = match c.balancing {
             Balancing::Static => None,
             Balancing::Paper => Some(SlidePolicy::Paper),
-            Balancing::Proportional => Some(host_tool::paper::PROPORTIONAL),
+            Balancing::Proportional => Some(host_tool::render::PROPORTIONAL),
         };
         opts.balance =
             policy.map(|policy| Balance { interval: c.interval, threshold: 1 << 16, step: 1, policy });

@@ -92,7 +92,7 @@ fn depth_one_queues_with_sliding_boundaries_finish() {
     // back behind refused ones: once this stalled with every node's pool full
     // of rays for a neighbour that had room only for higher classes.
     let slide = |policy| link_proto::Balance { interval: 500_000, threshold: 1 << 16, step: 1, policy };
-    let policies = [link_proto::SlidePolicy::Paper, host_tool::paper::PROPORTIONAL];
+    let policies = [link_proto::SlidePolicy::Paper, host_tool::render::PROPORTIONAL];
     for (seed, array) in [(7, [2, 2, 2]), (8, [4, 2, 1]), (9, [2, 3, 2])] {
         let s = Scene::random(24, seed, 1.0, [12, 12, 12]).unwrap();
         let want = direct::render(&s, 24, 24).unwrap();

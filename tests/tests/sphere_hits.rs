@@ -216,7 +216,7 @@ proptest! {
 
 #[test]
 fn every_stiff_case_passes_and_the_readme_shows_the_current_table() {
-    let (table, all_pass) = host_tool::numerics::stiff_table::markdown();
+    let (table, all_pass) = lab::numerics::stiff_table::markdown();
     assert!(all_pass, "a stiff case failed:\n{table}");
     let readme =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/arithmetic.md")).unwrap();
@@ -226,6 +226,6 @@ fn every_stiff_case_passes_and_the_readme_shows_the_current_table() {
     assert_eq!(
         &readme[start..end],
         table,
-        "docs/arithmetic.md table is stale: run `host-tool report stiff` and paste it"
+        "docs/arithmetic.md table is stale: run `lab report stiff` and paste it"
     );
 }

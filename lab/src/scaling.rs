@@ -9,11 +9,11 @@ use std::path::Path;
 
 use sim_board::Busy;
 
-use crate::error::HostError;
-use crate::output::write_all_atomic;
-use crate::plot::{Chart, Series, png};
-use crate::render::{Layout, RenderOptions, render_sim};
-use crate::scene::Scene;
+use host_tool::error::HostError;
+use host_tool::output::write_all_atomic;
+use host_tool::plot::{Chart, Series, png};
+use host_tool::render::{Layout, RenderOptions, render_sim};
+use host_tool::scene::Scene;
 
 /// What to run.
 #[derive(Debug, Clone)]
@@ -73,13 +73,13 @@ impl ScalingRow {
 /// `scaling.png` to `out` (all or none) and returns the Markdown table.
 pub fn bench_scaling(scene: &Scene, cfg: &ScalingConfig, out: &Path) -> Result<String, HostError> {
     if cfg.sides.first() != Some(&1) {
-        return Err(crate::error::input("bench scaling needs the one-node run first (side 1)"));
+        return Err(host_tool::error::input("bench scaling needs the one-node run first (side 1)"));
     }
     // Before the runs, not after them.
     std::fs::create_dir_all(out)
         .map_err(|e| HostError::Io(format!("cannot create {}: {e}", out.display())))?;
     let files = ["scaling.csv", "scaling.md", "scaling.png"].map(|f| out.join(f));
-    crate::output::check_writable(&files.iter().map(|p| p.as_path()).collect::<Vec<_>>())?;
+    host_tool::output::check_writable(&files.iter().map(|p| p.as_path()).collect::<Vec<_>>())?;
     let mut rows: Vec<ScalingRow> = Vec::new();
     let mut one: Option<(u64, u64)> = None;
     for &side in &cfg.sides {

@@ -1,4 +1,4 @@
-//! The stiff-case results table (`host-tool report stiff`), shown in docs/arithmetic.md.
+//! The stiff-case results table (`lab report stiff`), shown in docs/arithmetic.md.
 
 use fixed::types::I16F16;
 use node_fw::{DigitalLine, Error, Field, Grid, Line, Material, Point, Sphere};

@@ -1,0 +1,10 @@
+//! Experiments and test oracles of the sliding-boundary ray tracer, apart
+//! from the product: the paper's experiments ([`paper`]), efficiency against
+//! array size ([`scaling`]), and the arithmetic's references and reports
+//! ([`numerics`]: an exact rational traversal and a big-integer sphere test
+//! that the tests hold the kernels to, the stiff cases, and error against run
+//! time of arithmetic variants).
+
+pub mod numerics;
+pub mod paper;
+pub mod scaling;

@@ -1,0 +1,227 @@
+//! `lab`: the experiments behind the docs' numbers, apart from the product:
+//! the paper's experiments, the scaling and board benchmarks, and the
+//! arithmetic reports. Each writes its tables (and plots) where `--out` says.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use host_tool::args::{LinkArgs, SceneArgs, load_scene, parse_triple, usage_error};
+use host_tool::error::{HostError, input};
+use host_tool::output::write_atomic;
+use host_tool::render::{RenderOptions, render_sim};
+use host_tool::{direct, scene::Scene};
+
+#[derive(Parser)]
+#[command(
+    name = "lab",
+    version,
+    about = "Experiments of the sliding-boundary ray tracer: benchmarks and reports"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Benchmarks.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+    /// Reports on the arithmetic.
+    #[command(subcommand)]
+    Report(ReportCommand),
+}
+
+#[derive(Subcommand)]
+enum ReportCommand {
+    /// The stiff and extreme cases of the numerics notes: a Markdown table of
+    /// what each must do and what it did (docs/arithmetic.md shows it). Exits 4 if any fails.
+    Stiff {
+        /// Also write the table here.
+        #[arg(long, value_name = "FILE.md")]
+        out: Option<PathBuf>,
+    },
+    /// Error against run time of arithmetic variants (fixed point, f32) against
+    /// the f64 reference: CSV, Markdown table and a Pareto plot.
+    Numerics {
+        /// Output directory.
+        #[arg(long, value_name = "DIR", default_value = "numerics")]
+        out: PathBuf,
+        /// One small scene (for CI).
+        #[arg(long)]
+        quick: bool,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Host rays/s of the in-memory board at several array sizes, and of a plain
+    /// single-threaded loop over the same kernels (the node machinery's overhead).
+    Board(BoardBenchArgs),
+    /// The paper's experiments (Figs. 7-10): CSV tables and PNG plots.
+    Paper(PaperArgs),
+    /// Efficiency E = T(1) / (S T(S)) and where the busy cycles go, for
+    /// S = 1, 8, 27, 64, 216, 512 on the in-memory board: a table, CSV and PNG.
+    Scaling(ScalingArgs),
+}
+
+#[derive(Args)]
+struct ScalingArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    links: LinkArgs,
+    /// Output directory.
+    #[arg(long, value_name = "DIR", default_value = "scaling")]
+    out: PathBuf,
+    /// S = 1, 8 and 27 only (for CI).
+    #[arg(long)]
+    quick: bool,
+}
+
+#[derive(Args)]
+struct PaperArgs {
+    /// Output directory.
+    #[arg(long, value_name = "DIR", default_value = "paper")]
+    out: PathBuf,
+    /// A reduced run (a minute or two) for CI.
+    #[arg(long)]
+    quick: bool,
+    /// Seed of the random scenes (1986 by default, the paper's year): rerun
+    /// with others to see how far the results depend on one scene.
+    #[arg(long, value_name = "N", default_value_t = 1986)]
+    seed: u64,
+}
+
+#[derive(Args)]
+struct BoardBenchArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Arrays to run, comma-separated.
+    #[arg(long, value_name = "XxYxZ,...", default_value = "1x1x1,2x2x2,4x4x4,8x8x8")]
+    arrays: String,
+    /// Runs per configuration (the best is reported).
+    #[arg(long, default_value_t = 1)]
+    repeat: u32,
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return usage_error(&e),
+    };
+    let result = match cli.command {
+        Command::Bench(BenchCommand::Board(args)) => bench_board(args),
+        Command::Report(ReportCommand::Numerics { out, quick }) => numerics_report(&out, quick),
+        Command::Report(ReportCommand::Stiff { out }) => {
+            let (table, pass) = lab::numerics::stiff_table::markdown();
+            print!("{table}");
+            match out {
+                Some(path) => write_atomic(&path, table.as_bytes()),
+                None => Ok(()),
+            }
+            .and_then(|()| if pass { Ok(()) } else { Err(HostError::Node("a stiff case failed".into())) })
+        }
+        Command::Bench(BenchCommand::Scaling(args)) => bench_scaling(args),
+        Command::Bench(BenchCommand::Paper(args)) => {
+            let cfg =
+                if args.quick { lab::paper::PaperConfig::quick() } else { lab::paper::PaperConfig::full() };
+            let cfg = lab::paper::PaperConfig { seed: args.seed, ..cfg };
+            lab::paper::bench_paper(&cfg, &args.out).map(|report| print!("{report}"))
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(e.exit_code() as u8)
+        }
+    }
+}
+
+fn bench_board(args: BoardBenchArgs) -> Result<(), HostError> {
+    let mut scene_args = args.scene.clone();
+    if scene_args.scene.is_none() && scene_args.spheres.is_none() {
+        scene_args.spheres = Some(1000);
+    }
+    let scene = load_scene(&scene_args)?;
+    let [w, h] = scene_args.size;
+    let arrays: Vec<[u16; 3]> =
+        args.arrays.split(',').map(parse_triple).collect::<Result<_, _>>().map_err(input)?;
+    println!("{{\"size\": [{w}, {h}], \"spheres\": {}, \"runs\": [", scene.spheres.len());
+    let best = |f: &mut dyn FnMut() -> Result<(f64, u64), HostError>| -> Result<(f64, u64), HostError> {
+        let mut out = (f64::INFINITY, 0);
+        for _ in 0..args.repeat.max(1) {
+            let (t, rays) = f()?;
+            out = (out.0.min(t), rays);
+        }
+        Ok(out)
+    };
+    let (t_direct, rays) = best(&mut || {
+        let start = std::time::Instant::now();
+        let img = direct::render(&scene, w, h)?;
+        Ok((start.elapsed().as_secs_f64(), img.rays))
+    })?;
+    let direct_rate = rays as f64 / t_direct;
+    println!(
+        "  {{\"config\": \"single loop\", \"nodes\": 1, \"rays\": {rays}, \"seconds\": {t_direct:.3}, \"rays_per_s\": {direct_rate:.0}}},"
+    );
+    for (i, array) in arrays.iter().enumerate() {
+        let mut opts = RenderOptions::new(*array);
+        opts.size = scene_args.size;
+        let (t, rays) = best(&mut || {
+            let r = render_sim(&scene, &opts)?;
+            Ok((r.wall.as_secs_f64(), r.frame.rays_terminated))
+        })?;
+        let rate = rays as f64 / t;
+        let nodes: u32 = array.iter().map(|&n| u32::from(n)).product();
+        let sep = if i + 1 < arrays.len() { "," } else { "" };
+        println!(
+            "  {{\"config\": \"board {}x{}x{}\", \"nodes\": {nodes}, \"rays\": {rays}, \"seconds\": {t:.3}, \"rays_per_s\": {rate:.0}, \"single_loop_over_board\": {:.2}}}{sep}",
+            array[0],
+            array[1],
+            array[2],
+            direct_rate / rate
+        );
+    }
+    println!("]}}");
+    Ok(())
+}
+
+fn bench_scaling(args: ScalingArgs) -> Result<(), HostError> {
+    let mut scene_args = args.scene.clone();
+    if scene_args.scene.is_none() && scene_args.spheres.is_none() {
+        // The scene: the paper's 1000 random spheres, seed 1986.
+        scene_args.spheres = Some(1000);
+        scene_args.seed = scene_args.seed.or(Some(1986));
+    }
+    let scene = load_scene(&scene_args)?;
+    let mut base = RenderOptions::new([1, 1, 1]);
+    base.size = scene_args.size;
+    args.links.apply(&mut base)?;
+    let cfg = if args.quick {
+        lab::scaling::ScalingConfig::quick(base)
+    } else {
+        lab::scaling::ScalingConfig::full(base)
+    };
+    let table = lab::scaling::bench_scaling(&scene, &cfg, &args.out)?;
+    print!("{table}");
+    Ok(())
+}
+
+fn numerics_report(out: &std::path::Path, quick: bool) -> Result<(), HostError> {
+    let grid = [32; 3];
+    let mut scenes = vec![("demo".to_string(), Scene::random(400, 1986, 1.0, grid)?)];
+    let size = if quick {
+        [48, 48]
+    } else {
+        for seed in [1, 2] {
+            scenes.push((format!("1000 spheres, seed {seed}"), Scene::random(1000, seed, 1.0, grid)?));
+        }
+        [128, 128]
+    };
+    let md = lab::numerics::variants::report(&scenes, size, out)?;
+    print!("{md}");
+    Ok(())
+}

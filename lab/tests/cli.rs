@@ -1,0 +1,52 @@
+//! The lab's commands, run as a user runs them.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use tempfile::TempDir;
+
+fn lab(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lab")).current_dir(dir).args(args).output().expect("runs")
+}
+
+fn scratch(name: &str) -> TempDir {
+    tempfile::Builder::new().prefix(&format!("lab-cli-{name}-")).tempdir().unwrap()
+}
+
+/// `bench scaling --quick`: E and the messaging share as the CSV's own
+/// columns say they should be (E = T(1) / (S T(S)), messaging over busy).
+#[test]
+fn bench_scaling_reports_efficiency_from_its_makespans() {
+    let scratch = scratch("scaling");
+    let dir = scratch.path();
+    let args = [
+        "bench",
+        "scaling",
+        "--quick",
+        "--spheres",
+        "60",
+        "--size",
+        "32x32",
+        "--link",
+        "ideal",
+        "--out",
+        "s",
+    ];
+    let out = lab(dir, &args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let csv = std::fs::read_to_string(dir.join("s/scaling.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.iter().map(|r| r[col("nodes")]).collect::<Vec<_>>(), ["1", "8", "8", "27", "27"]);
+    let num = |r: &Vec<&str>, name: &str| r[col(name)].parse::<f64>().unwrap();
+    let t1 = num(&rows[0], "makespan");
+    for r in &rows {
+        let e = t1 / (num(r, "nodes") * num(r, "makespan"));
+        assert!((num(r, "efficiency") - e).abs() < 1e-4, "{r:?}");
+        let busy = num(r, "compute") + num(r, "setup") + num(r, "messaging");
+        assert!((num(r, "messaging_share") - num(r, "messaging") / busy).abs() < 1e-4, "{r:?}");
+    }
+    assert!(dir.join("s/scaling.png").is_file() && dir.join("s/scaling.md").is_file());
+}
