@@ -14,3 +14,18 @@ pub use mps2_an385 as active;
 pub mod stm32f413;
 #[cfg(all(any(feature = "stm32f413", feature = "netduinoplus2"), not(feature = "mps2-an385")))]
 pub use stm32f413 as active;
+
+/// The board's parts the node firmware uses: its UARTs `U` (the host's and
+/// `N` neighbours'), its clock `C`, what it is, and its lights on pins `L`.
+pub struct Parts<U, C, L, const N: usize> {
+    /// The host's UART.
+    pub host: U,
+    /// The neighbours' UARTs.
+    pub neighbours: [U; N],
+    /// The clock.
+    pub clock: C,
+    /// What the board is, for its hellos.
+    pub info: link_proto::BoardInfo,
+    /// The working light and the fault light.
+    pub lights: crate::lights::Lights<L, L>,
+}

@@ -16,7 +16,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use link_proto::{BoardInfo, BoardKind, ClockSource};
 use node_fw::framed::FramedLinks;
 use node_fw::{Port, wiring};
 use serialport::{SerialPort, TTYPort};
@@ -107,15 +106,7 @@ fn run_boards(array: [u16; 3], masters: Vec<TTYPort>, fault: Fault, stop: &Atomi
     // Each software board names itself, as real ones do, so the host checks
     // their cables (in memory, right by construction) before rendering.
     for (i, n) in node.iter_mut().enumerate() {
-        n.set_board(BoardInfo {
-            id: sim_board::board::board_id(i),
-            kind: BoardKind::Simulated,
-            firmware: node_fw::node::NODE_FW_VERSION,
-            clock_hz: 0,
-            clock_source: ClockSource::Virtual,
-            link_baud: 0,
-            host_baud: 0,
-        });
+        n.set_board(sim_board::board::board_info(i));
     }
     let mut links: Vec<Box<FramedLinks<8, 16>>> = (0..nodes)
         .map(|i| {

@@ -137,7 +137,7 @@ pub fn board_id(id: usize) -> BoardId {
 }
 
 /// What the in-memory board's node `id` says it runs on.
-fn board_info(id: usize) -> BoardInfo {
+pub fn board_info(id: usize) -> BoardInfo {
     BoardInfo {
         id: board_id(id),
         kind: BoardKind::Simulated,

@@ -142,19 +142,8 @@ pub const ID_CELL: usize = 0x2000_FFF0;
 /// The UARTs' rate (QEMU ignores it).
 const BAUD: u32 = 115_200;
 
-/// The board's parts the node firmware uses.
-pub struct Parts {
-    /// The host's UART.
-    pub host: Uart,
-    /// The neighbours' UARTs.
-    pub neighbours: [Uart; NEIGHBOUR_UARTS],
-    /// The clock.
-    pub clock: Timer,
-    /// What the board is, for its hellos.
-    pub info: BoardInfo,
-    /// The user LEDs: LED0 lit while working, LED1 once failed.
-    pub lights: Lights<Led, Led>,
-}
+/// This board's parts: the user LEDs are LED0 lit while working, LED1 once failed.
+pub type Parts = super::Parts<Uart, Timer, Led, NEIGHBOUR_UARTS>;
 
 /// Brings the board up.
 pub fn init() -> Parts {

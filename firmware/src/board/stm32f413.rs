@@ -243,19 +243,8 @@ impl Clock for Timer {
     }
 }
 
-/// The board's parts the node firmware uses.
-pub struct Parts {
-    /// The host's UART.
-    pub host: Uart,
-    /// The neighbours' UARTs, in port order.
-    pub neighbours: [Uart; NEIGHBOUR_UARTS],
-    /// The clock.
-    pub clock: Timer,
-    /// What the board is, for its hellos.
-    pub info: BoardInfo,
-    /// The user LEDs: LD1 (green) lit while working, LD3 (red) once failed.
-    pub lights: Lights<Led, Led>,
-}
+/// This board's parts: the user LEDs are LD1 (green) lit while working, LD3 (red) once failed.
+pub type Parts = super::Parts<Uart, Timer, Led, NEIGHBOUR_UARTS>;
 
 /// Brings the board up: the core clock first, then the UARTs at their rates.
 pub fn init() -> Parts {
