@@ -152,7 +152,7 @@ pub fn scene_source(args: &SceneArgs, scene: &Scene) -> serde_json::Value {
             "format": match SceneFormat::of(path) { SceneFormat::Nff => "nff", SceneFormat::Json => "json" },
             "fitted": args.fit || SceneFormat::of(path) == SceneFormat::Nff, "spheres": spheres,
         }),
-        None if args.spheres.is_none() && args.seed.is_none() && args.volume_ratio.is_none() => {
+        None if is_demo(args) => {
             serde_json::json!({"source": "demo", "spheres": spheres, "seed": DEMO_SEED, "volume_ratio": 1.0})
         }
         None => serde_json::json!({
@@ -172,13 +172,28 @@ pub fn load_scene(args: &SceneArgs) -> Result<Scene, HostError> {
         }
         return Ok(scene);
     }
-    let default_demo = args.spheres.is_none() && args.seed.is_none() && args.volume_ratio.is_none();
-    let (count, seed, ratio) = if default_demo {
+    let (count, seed, ratio) = if is_demo(args) {
         (DEMO_SPHERES, DEMO_SEED, 1.0)
     } else {
         (args.spheres.unwrap_or(1000), args.seed.unwrap_or(1), args.volume_ratio.unwrap_or(1.0))
     };
     Scene::random(count, seed, ratio, args.grid.unwrap_or([32; 3]))
+}
+
+/// Whether the options leave the scene to the demo.
+fn is_demo(args: &SceneArgs) -> bool {
+    args.spheres.is_none() && args.seed.is_none() && args.volume_ratio.is_none()
+}
+
+/// `--node-timeout`'s seconds as a time-out, or why they are not one.
+pub fn node_timeout(seconds: f64) -> Result<std::time::Duration, HostError> {
+    if seconds.is_finite() && seconds > 0.0 && seconds < 1e6 {
+        Ok(std::time::Duration::from_secs_f64(seconds))
+    } else {
+        Err(crate::error::input(format!(
+            "--node-timeout must be a positive number of seconds, got {seconds}"
+        )))
+    }
 }
 
 /// `XxYxZ`, such as an array or a grid.

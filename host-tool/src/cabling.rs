@@ -28,7 +28,7 @@ pub struct Reported {
 
 /// What a port reaches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Found {
+pub enum Reaches {
     /// The board of this node.
     Node(usize),
     /// A board that is on none of the devices.
@@ -52,7 +52,7 @@ pub enum Fault {
         /// Its port.
         port: Port,
         /// What the port reaches.
-        found: Found,
+        found: Reaches,
         /// The node it should reach.
         expected: usize,
     },
@@ -87,10 +87,10 @@ pub fn check(reported: &[Reported], array: [u16; 3]) -> Vec<Fault> {
         for port in Port::NEIGHBOURS {
             let Some(expected) = neighbour_of(node, port, array).map(usize::from) else { continue };
             let found = match r.peers[port.index()] {
-                None => Found::Nothing,
-                Some(id) => index.get(&id).map_or(Found::Unlisted(id), |&n| Found::Node(n)),
+                None => Reaches::Nothing,
+                Some(id) => index.get(&id).map_or(Reaches::Unlisted(id), |&n| Reaches::Node(n)),
             };
-            if found != Found::Node(expected) {
+            if found != Reaches::Node(expected) {
                 wrong.push(Fault::Wrong { node, port, found, expected });
             }
         }
@@ -114,7 +114,7 @@ fn board_index(reported: &[Reported]) -> Result<HashMap<BoardId, usize>, usize> 
 /// neighbour by one swap.
 fn pair_swaps(wrong: Vec<Fault>) -> Vec<Fault> {
     let reaches = |f: &Fault| match *f {
-        Fault::Wrong { node, port, found: Found::Node(found), expected } => {
+        Fault::Wrong { node, port, found: Reaches::Node(found), expected } => {
             Some((node, port, found, expected))
         }
         _ => None,
@@ -180,9 +180,9 @@ pub fn describe(fault: &Fault, reported: &[Reported], array: [u16; 3]) -> String
         ),
         Fault::Wrong { node, port, found, expected } => {
             let reaches = match found {
-                Found::Node(n) => board_name(n, reported, array),
-                Found::Unlisted(id) => format!("board {id}, which is on none of the given devices"),
-                Found::Nothing => "no board".to_string(),
+                Reaches::Node(n) => board_name(n, reported, array),
+                Reaches::Unlisted(id) => format!("board {id}, which is on none of the given devices"),
+                Reaches::Nothing => "no board".to_string(),
             };
             format!(
                 "{}: its {} link reaches {reaches}, expected {}",
@@ -338,7 +338,7 @@ mod tests {
         let faults = check(&r, array);
         assert_eq!(faults[0], Fault::Swapped { node: 0, ports: (Port::PosX, Port::PosY) });
         assert_eq!(describe(&faults[0], &r, array), "node 0 (0,0,0) on d0: its +X and +Y cables are swapped");
-        assert!(faults[1..].iter().all(|f| matches!(f, Fault::Wrong { found: Found::Nothing, .. })));
+        assert!(faults[1..].iter().all(|f| matches!(f, Fault::Wrong { found: Reaches::Nothing, .. })));
     }
 
     #[test]

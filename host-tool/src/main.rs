@@ -4,7 +4,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use host_tool::args::{LinkArgs, SceneArgs, load_scene, parse_triple, scene_source, usage_error};
+use host_tool::args::{
+    LinkArgs, SceneArgs, load_scene, node_timeout, parse_triple, scene_source, usage_error,
+};
 use host_tool::backend::Backend;
 use host_tool::compare::compare;
 use host_tool::error::{HostError, input};
@@ -290,13 +292,7 @@ fn scene_cmd(args: SceneOutArgs) -> Result<(), HostError> {
 }
 
 fn boards(args: BoardsArgs) -> Result<(), HostError> {
-    if !(args.node_timeout.is_finite() && args.node_timeout > 0.0 && args.node_timeout < 1e6) {
-        return Err(input(format!(
-            "--node-timeout must be a positive number of seconds, got {}",
-            args.node_timeout
-        )));
-    }
-    let timeout = std::time::Duration::from_secs_f64(args.node_timeout);
+    let timeout = node_timeout(args.node_timeout)?;
     let listing = match (args.emulate, args.array) {
         (Some(board), Some(array)) => {
             let board = EmulatedBoard::from(board);
@@ -371,13 +367,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
     if !matches!(backend, Backend::Serial { .. }) && (!args.ports.is_empty() || args.order_ports) {
         return Err(input("--ports and --order-ports are for --backend serial"));
     }
-    if !(args.node_timeout.is_finite() && args.node_timeout > 0.0 && args.node_timeout < 1e6) {
-        return Err(input(format!(
-            "--node-timeout must be a positive number of seconds, got {}",
-            args.node_timeout
-        )));
-    }
-    let timeout = std::time::Duration::from_secs_f64(args.node_timeout);
+    let timeout = node_timeout(args.node_timeout)?;
     let in_dir = |name: &str| match args.out_dir.as_path() {
         dir if dir == std::path::Path::new(".") => PathBuf::from(name),
         dir => dir.join(name),

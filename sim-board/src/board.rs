@@ -4,7 +4,7 @@ use std::fmt;
 
 use std::collections::{BTreeMap, VecDeque};
 
-use link_proto::{BoardId, BoardInfo, BoardKind, ClockSource, Message};
+use link_proto::{BoardId, BoardInfo, Message};
 use node_fw::Port;
 use node_fw::reliable::{Channel, ChannelStats};
 use rayon::prelude::*;
@@ -138,15 +138,7 @@ pub fn board_id(id: usize) -> BoardId {
 
 /// What the in-memory board's node `id` says it runs on.
 pub fn board_info(id: usize) -> BoardInfo {
-    BoardInfo {
-        id: board_id(id),
-        kind: BoardKind::Simulated,
-        firmware: node_fw::node::NODE_FW_VERSION,
-        clock_hz: 0,
-        clock_source: ClockSource::Virtual,
-        link_baud: 0,
-        host_baud: 0,
-    }
+    BoardInfo { id: board_id(id), ..node_fw::node::UNNAMED_BOARD }
 }
 
 /// X x Y x Z nodes running the node firmware, wired to their face neighbours.

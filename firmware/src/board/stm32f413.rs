@@ -184,10 +184,19 @@ impl Read for Uart {
     /// Blocks until a byte arrives (embedded-io's contract); reads one.
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, Infallible> {
         let Some(first) = buf.first_mut() else { return Ok(0) };
-        while !self.rx_ready() {}
-        // An overrun keeps the byte in DR and loses the next; reading SR then
-        // DR delivers the kept byte and clears the overrun.
-        let overrun = with_regs!(self.regs, r => r.sr().read().ore().bit_is_set());
+        // One status read per byte (each is a bus access, and an exit to
+        // the device model under QEMU). An overrun keeps the byte in DR and
+        // loses the next; reading SR then DR delivers the kept byte and
+        // clears the overrun.
+        let overrun = loop {
+            let (ready, overrun) = with_regs!(self.regs, r => {
+                let sr = r.sr().read();
+                (sr.rxne().bit_is_set(), sr.ore().bit_is_set())
+            });
+            if ready {
+                break overrun;
+            }
+        };
         if overrun {
             self.overruns = self.overruns.wrapping_add(1);
         }

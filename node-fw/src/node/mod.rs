@@ -175,8 +175,9 @@ pub const NODE_FW_VERSION: FirmwareVersion = FirmwareVersion {
     patch: version_part(env!("CARGO_PKG_VERSION_PATCH")),
 };
 
-/// A node's board until its owner says which: no id, virtual time.
-const UNKNOWN_BOARD: BoardInfo = BoardInfo {
+/// A node's board until its owner says which: no id, virtual time (the
+/// in-memory board gives each node an id on top).
+pub const UNNAMED_BOARD: BoardInfo = BoardInfo {
     id: BoardId::NONE,
     kind: BoardKind::Simulated,
     firmware: NODE_FW_VERSION,
@@ -207,7 +208,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             pool: RayPool::new(),
             ports: [Neighbour::NEW; 6],
             hello_due: true,
-            board: UNKNOWN_BOARD,
+            board: UNNAMED_BOARD,
             error_due: None,
             load_due: None,
             meter: LoadMeter::new(),

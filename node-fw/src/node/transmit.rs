@@ -112,9 +112,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         links: &mut L,
         send: &mut impl FnMut(&mut L, Port, Message) -> bool,
     ) {
-        let hello = Message::Hello(self.hello());
+        // Built only while one is due: this runs on every poll.
+        let hello = self.ports.iter().any(|n| n.hello_due).then(|| Message::Hello(self.hello()));
         for (n, port) in self.ports.iter_mut().zip(Port::NEIGHBOURS) {
-            if n.hello_due && links.cabled(port) {
+            if let Some(hello) = hello.as_ref().filter(|_| n.hello_due && links.cabled(port)) {
                 n.hello_due = !send(links, port, hello.clone());
             }
             if let Some(board) = n.peer.filter(|_| n.note_due) {
