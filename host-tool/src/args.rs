@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use clap::{Args, ValueEnum};
 
 use crate::error::HostError;
-use crate::render::RenderOptions;
+use crate::plan::options::RenderOptions;
 use crate::scene::{Reading, Scene, SceneFormat};
 
 /// The scene: a file, a random scene like the paper's, or the demo; and the image size.
@@ -49,7 +49,7 @@ pub struct LinkArgs {
     /// neighbour USARTs at 3.125 Mbaud, host at 921 600 baud, a byte interrupt),
     /// ideal (25 cycles a byte, no CPU per byte) or emulated (the QEMU
     /// boards: polled UARTs, the loop's pass charged) [default: f413].
-    #[arg(long, value_name = "PRESET", value_parser = crate::links::preset_named)]
+    #[arg(long, value_name = "PRESET", value_parser = crate::session::links::preset_named)]
     pub link: Option<sim_board::LinkPreset>,
     /// Core clock of the nodes, MHz (overrides the preset's).
     #[arg(long, value_name = "MHZ")]
@@ -84,7 +84,7 @@ impl LinkArgs {
             Some(mhz) => Some((mhz * 1e6).round().clamp(0.0, u64::MAX as f64) as u64),
             None => None,
         };
-        let choice = crate::links::LinkChoice {
+        let choice = crate::session::links::LinkChoice {
             preset: self.link.unwrap_or_default(),
             clock_hz,
             baud: self.baud,

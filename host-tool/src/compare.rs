@@ -8,8 +8,8 @@ use serde::Serialize;
 
 use glam::DVec3;
 
-use crate::camera::PixelBasis;
-use crate::direct::DirectImage;
+use crate::plan::camera::PixelBasis;
+use crate::plan::direct::DirectImage;
 use crate::reference::{RefImage, silhouette_margin};
 use crate::scene::Scene;
 

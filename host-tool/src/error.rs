@@ -14,7 +14,7 @@ pub enum HostError {
     Radius(String),
     /// A sphere outside the grid, or sticking out of it (exit 13).
     OutsideGrid(String),
-    /// An image size out of range: zero, or over [`crate::frame::MAX_PIXELS`] (exit 14).
+    /// An image size out of range: zero, or over [`crate::session::frame::MAX_PIXELS`] (exit 14).
     ImageSize(String),
     /// An array larger than the grid (exit 15).
     ArrayTooLarge(String),

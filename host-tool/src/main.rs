@@ -7,19 +7,22 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use host_tool::args::{
     LinkArgs, SceneArgs, load_scene, node_timeout, parse_triple, scene_source, usage_error,
 };
-use host_tool::backend::Backend;
 use host_tool::compare::compare;
 use host_tool::error::{HostError, input};
-use host_tool::output::{
-    check_png_name, check_writable, png, refuse_overwrite, write_all_atomic, write_atomic,
-};
-use host_tool::qemu::EmulatedBoard;
-use host_tool::render::{Initial, Layout, RenderOptions};
-use host_tool::run_files::{
+use host_tool::plan::options::{Initial, Layout, RenderOptions};
+use host_tool::results::RenderResult;
+use host_tool::results::files::{
     Provenance, boundary_history_csv, history_plot, imbalance, load_history_csv, loads_csv, summary_json,
 };
+use host_tool::results::output::{
+    check_png_name, check_writable, png, refuse_overwrite, write_all_atomic, write_atomic,
+};
+use host_tool::scene::Scene;
 use host_tool::scene::SceneFormat;
-use host_tool::{direct, reference};
+use host_tool::session::backend::{Backend, Rendered};
+use host_tool::session::clock::Clock;
+use host_tool::session::qemu::EmulatedBoard;
+use host_tool::{plan::direct, reference};
 use link_proto::{Balance, SlidePolicy};
 
 #[derive(Parser)]
@@ -297,10 +300,10 @@ fn boards(args: BoardsArgs) -> Result<(), HostError> {
         (Some(board), Some(array)) => {
             let board = EmulatedBoard::from(board);
             let firmware = args.firmware.unwrap_or_else(|| board.default_firmware());
-            let qemu = host_tool::qemu::QemuArray::launch(board, array, &firmware)?;
-            host_tool::boards::list(&qemu.ptys, Some(array), timeout)?
+            let qemu = host_tool::session::qemu::QemuArray::launch(board, array, &firmware)?;
+            host_tool::session::boards::list(&qemu.ptys, Some(array), timeout)?
         }
-        _ => host_tool::boards::list(&args.ports, args.array, timeout)?,
+        _ => host_tool::session::boards::list(&args.ports, args.array, timeout)?,
     };
     print!("{listing}");
     Ok(())
@@ -327,7 +330,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
     opts.sim.watchdog = args.watchdog;
     opts.driving_axis = match args.driving_axis {
         AxisChoice::Auto => None,
-        AxisChoice::View => Some(host_tool::partition::view_axis(&scene)),
+        AxisChoice::View => Some(host_tool::plan::partition::view_axis(&scene)),
         AxisChoice::X => Some(0),
         AxisChoice::Y => Some(1),
         AxisChoice::Z => Some(2),
@@ -341,7 +344,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         }
         let policy = match args.policy {
             PolicyChoice::Paper => SlidePolicy::Paper,
-            PolicyChoice::Proportional => host_tool::render::PROPORTIONAL,
+            PolicyChoice::Proportional => host_tool::plan::options::PROPORTIONAL,
         };
         let threshold = (args.threshold * 65536.0).round() as u32;
         opts.balance = Some(Balance { interval: args.interval, threshold, step: 1, policy });
@@ -391,43 +394,66 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
     // A run writes all of its outputs or none: a path that cannot take its
     // file is refused before the render, not after it.
     check_writable(&outputs)?;
-    let result = host_tool::backend::render(&scene, &opts, &backend, timeout)?;
+    let from = Provenance { backend: backend.name(), scene: scene_source(&args.scene, &scene) };
+    let files = RunFiles {
+        image: out,
+        plot: plot_path,
+        loads: loads_path,
+        summary: summary_path,
+        load_history: history_path,
+        boundary_history: boundaries_path,
+    };
+    match host_tool::session::backend::render(&scene, &opts, &backend, timeout)? {
+        Rendered::Sim(result) => write_run(&scene, &opts, &result, &from, &files),
+        Rendered::Boards(result) => write_run(&scene, &opts, &result, &from, &files),
+    }
+}
+
+/// Where `render` writes each of its outputs.
+struct RunFiles {
+    image: PathBuf,
+    plot: PathBuf,
+    loads: PathBuf,
+    summary: PathBuf,
+    load_history: PathBuf,
+    boundary_history: PathBuf,
+}
+
+/// Writes a run's outputs, all or none, and says what was rendered.
+fn write_run<T: Clock>(
+    scene: &Scene,
+    opts: &RenderOptions,
+    result: &RenderResult<T>,
+    from: &Provenance,
+    files: &RunFiles,
+) -> Result<(), HostError> {
     let f = &result.frame;
     let image = png(f.width, f.height, &f.rgb8())?;
-    let from = Provenance {
-        backend: match &backend {
-            Backend::Sim => "sim".to_string(),
-            Backend::Qemu { board, .. } => format!("qemu ({})", board.name()),
-            Backend::Serial { .. } => "serial".to_string(),
-        },
-        scene: scene_source(&args.scene, &scene),
-    };
-    let summary = summary_json(&scene, &opts, &result, &from);
-    let loads = loads_csv(&result);
-    let history = load_history_csv(&result);
-    let boundaries = boundary_history_csv(&result);
-    let plot = history_plot(&result)?;
+    let summary = summary_json(scene, opts, result, from);
+    let loads = loads_csv(result);
+    let history = load_history_csv(result);
+    let boundaries = boundary_history_csv(result);
+    let plot = history_plot(result)?;
     write_all_atomic(&[
-        (&out, &image),
-        (&plot_path, &plot),
-        (&loads_path, loads.as_bytes()),
-        (&summary_path, summary.as_bytes()),
-        (&history_path, history.as_bytes()),
-        (&boundaries_path, boundaries.as_bytes()),
+        (&files.image, &image),
+        (&files.plot, &plot),
+        (&files.loads, loads.as_bytes()),
+        (&files.summary, summary.as_bytes()),
+        (&files.load_history, history.as_bytes()),
+        (&files.boundary_history, boundaries.as_bytes()),
     ])?;
     eprintln!(
-        "rendered {}x{} on {}x{}x{} nodes: makespan {} {}, imbalance {:.3}, {} rays, {:.2} s -> {}",
+        "rendered {}x{} on {}x{}x{} nodes: makespan {}, imbalance {:.3}, {} rays, {:.2} s -> {}",
         f.width,
         f.height,
         opts.array[0],
         opts.array[1],
         opts.array[2],
         f.makespan,
-        if backend == Backend::Sim { "cycles" } else { "us of host time" },
-        imbalance(&result),
+        imbalance(result),
         f.rays_terminated,
         result.wall.as_secs_f64(),
-        out.display()
+        files.image.display()
     );
     Ok(())
 }
@@ -435,7 +461,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
 fn reference_cmd(args: ReferenceArgs) -> Result<(), HostError> {
     let scene = load_scene(&args.scene)?;
     let [w, h] = args.scene.size;
-    host_tool::frame::check_size(w, h)?;
+    host_tool::session::frame::check_size(w, h)?;
     check_png_name(&args.out)?;
     let img = reference::render(&scene, w, h);
     write_atomic(&args.out, &png(w, h, &img.rgb8())?)?;
@@ -446,9 +472,10 @@ fn reference_cmd(args: ReferenceArgs) -> Result<(), HostError> {
 fn compare_cmd(args: SceneArgs) -> Result<(), HostError> {
     let scene = load_scene(&args)?;
     let [w, h] = args.size;
-    host_tool::frame::check_size(w, h)?;
+    host_tool::session::frame::check_size(w, h)?;
     let fixed = direct::render(&scene, w, h)?;
-    let fixed_rgb: Vec<u8> = fixed.sums.iter().flat_map(|px| px.map(host_tool::frame::to_srgb8)).collect();
+    let fixed_rgb: Vec<u8> =
+        fixed.sums.iter().flat_map(|px| px.map(host_tool::session::frame::to_srgb8)).collect();
     let refimg = reference::render(&scene, w, h);
     let c = compare(&scene, args.size, &fixed, &fixed_rgb, &refimg, &refimg.rgb8());
     let text = serde_json::to_string_pretty(&c).map_err(|e| HostError::Io(e.to_string()))?;

@@ -7,9 +7,9 @@ use std::cell::Cell;
 
 use glam::{DVec3, Vec3};
 
-use crate::camera::PixelBasis;
-use crate::frame::to_srgb8;
+use crate::plan::camera::PixelBasis;
 use crate::scene::{Scene, SphereDesc};
+use crate::session::frame::to_srgb8;
 
 /// A pixel's first hit in the reference.
 #[derive(Debug, Clone, Copy, PartialEq)]

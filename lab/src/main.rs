@@ -8,9 +8,10 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use host_tool::args::{LinkArgs, SceneArgs, load_scene, parse_triple, usage_error};
 use host_tool::error::{HostError, input};
-use host_tool::output::write_atomic;
-use host_tool::render::{RenderOptions, render_sim};
-use host_tool::{direct, scene::Scene};
+use host_tool::plan::options::RenderOptions;
+use host_tool::results::output::write_atomic;
+use host_tool::session::sim::render_sim;
+use host_tool::{plan::direct, scene::Scene};
 
 #[derive(Parser)]
 #[command(

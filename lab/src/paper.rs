@@ -3,7 +3,7 @@
 //! - Fig. 7: time against the number of subregions S, for A (one node holding
 //!   the whole grid), B (the array, initial rays from the eye's node) and C
 //!   (the array, initial rays in parallel); beyond the paper, D (the array,
-//!   initial rays created on the node where they enter, [`host_tool::entry`]).
+//!   initial rays created on the node where they enter, [`host_tool::plan::entry`]).
 //! - Fig. 8: C for several sphere counts.
 //! - Figs. 9 and 10: sliding against the static partition over the volume
 //!   ratio of the region the spheres are confined to, 1000 and 2000 spheres;
@@ -17,11 +17,13 @@ use std::path::Path;
 use link_proto::{Balance, Boundaries, SlidePolicy};
 
 use host_tool::error::HostError;
-use host_tool::output::write_atomic;
-use host_tool::partition::Partition;
-use host_tool::plot::{Chart, Series, png};
-use host_tool::render::{Initial, Layout, RenderOptions, render_sim};
+use host_tool::plan::options::{Initial, Layout, RenderOptions};
+use host_tool::plan::partition::Partition;
+use host_tool::results::output::write_atomic;
+use host_tool::results::plot::{Chart, Series, png};
 use host_tool::scene::Scene;
+use host_tool::session::clock::Cycles;
+use host_tool::session::sim::render_sim;
 
 /// Experiment sizes.
 #[derive(Debug, Clone)]
@@ -135,36 +137,36 @@ fn run_on(
     initial: Initial,
     policy: Policy,
     static_makespan: u64,
-    partition: Option<host_tool::partition::Partition>,
+    partition: Option<host_tool::plan::partition::Partition>,
 ) -> Result<Run, HostError> {
     let mut opts = options(side, cfg, initial);
     // About 64 load comparisons over a frame, threshold 3 (loads are running / waiting).
     let interval = (static_makespan / 64).max(10_000);
     if !matches!(policy, Policy::Static) {
         let slide = if matches!(policy, Policy::ProportionalView) {
-            host_tool::render::PROPORTIONAL
+            host_tool::plan::options::PROPORTIONAL
         } else {
             SlidePolicy::Paper
         };
         opts.balance = Some(Balance { interval, threshold: 3 << 16, step: 1, policy: slide });
     }
     if matches!(policy, Policy::PaperView | Policy::ProportionalView) {
-        opts.driving_axis = Some(host_tool::partition::view_axis(scene));
+        opts.driving_axis = Some(host_tool::plan::partition::view_axis(scene));
     }
     let r = match partition {
-        Some(p) => host_tool::render::render_partitioned(scene, &opts, p)?,
+        Some(p) => host_tool::session::sim::render_partitioned(scene, &opts, p)?,
         None => render_sim(scene, &opts)?,
     };
     if r.frame.rays_created != r.frame.rays_terminated {
         return Err(HostError::Node("rays lost in a benchmark run".into()));
     }
-    let imbalance = host_tool::run_files::imbalance(&r);
-    let history = host_tool::history::boundary_history(&r.partition, &r.frame.slides);
-    let t = r.frame.makespan;
+    let imbalance = host_tool::results::files::imbalance(&r);
+    let history = host_tool::results::history::boundary_history(&r.partition, &r.frame.slides);
+    let t = r.frame.makespan.0;
     let per_interval = |moves: usize, span: u64| {
         moves as f64 / (boundaries(&r.partition) * (span as f64 / interval as f64).max(1.0))
     };
-    let steady = host_tool::history::churn(&history, t / 4, t - t / 4);
+    let steady = host_tool::results::history::churn(&history, Cycles(t / 4), Cycles(t - t / 4));
     Ok(Run {
         makespan: t,
         imbalance,
@@ -187,8 +189,8 @@ fn preview(
 ) -> Result<Partition, HostError> {
     let mut opts = options(side, cfg, initial);
     opts.layout = Layout::Preview;
-    opts.driving_axis = Some(host_tool::partition::view_axis(scene));
-    host_tool::render::initial_partition(scene, &opts, sim_board::SimNode::capacity())
+    opts.driving_axis = Some(host_tool::plan::partition::view_axis(scene));
+    host_tool::plan::initial_partition(scene, &opts, sim_board::SimNode::capacity())
 }
 
 /// Boundaries perpendicular to the driving axis (one per adjacent node pair along it).
@@ -329,7 +331,8 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                 let (st, imb, axis) = (base.makespan, base.imbalance, base.axis);
                 let _ = writeln!(fig9, "{n}x{n}x{n},{count},{v},static,{axis},{st},1.000,{imb:.3},0,0,0,0");
                 let model = sim_board::CostModel::default();
-                let mut map = host_tool::direct::measure_costs(&scene, cfg.size[0], cfg.size[1], &model)?;
+                let mut map =
+                    host_tool::plan::direct::measure_costs(&scene, cfg.size[0], cfg.size[1], &model)?;
                 // A strict lower bound: the compute work is the same whatever
                 // the partition (every cube's walks, tests and shading, and
                 // every pixel's initial ray); messages only add to it.
@@ -339,18 +342,18 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                 let compute = map.compute.iter().sum::<u64>() + pixels * model.create;
                 // Oracle: the partition fitted to the full frame's cost map,
                 // messages included, initial rays created where they enter.
-                host_tool::direct::add_initial_rays(&mut map, &scene, cfg.size, &model, true)?;
-                let view_ax = host_tool::partition::view_axis(&scene);
+                host_tool::plan::direct::add_initial_rays(&mut map, &scene, cfg.size, &model, true)?;
+                let view_ax = host_tool::plan::partition::view_axis(&scene);
                 let oracle_p =
                     Partition::fitted(scene.grid, [n; 3], view_ax, &map, Boundaries::StaggeredColumns)?;
                 let predicted = oracle_p.node_costs(&map);
                 let oracle = run_on(&scene, [n; 3], cfg, Initial::Entry, Policy::Static, st, Some(oracle_p))?;
                 // The least busiest node any partition the nodes route can have
                 // (over the three driving axes), and the oracle against it.
-                let broadcast = host_tool::direct::broadcast_cost(&scene, &model);
+                let broadcast = host_tool::plan::direct::broadcast_cost(&scene, &model);
                 let mut floor: Option<(u64, u8)> = None;
                 for axis in 0..3 {
-                    if let Some(f) = host_tool::fit::floor::floor(&map, [n; 3], axis)? {
+                    if let Some(f) = host_tool::plan::fit::floor::floor(&map, [n; 3], axis)? {
                         floor = Some(floor.map_or((f.cost, axis), |best| best.min((f.cost, axis))));
                     }
                 }

@@ -10,10 +10,11 @@ use std::path::Path;
 use sim_board::Busy;
 
 use host_tool::error::HostError;
-use host_tool::output::write_all_atomic;
-use host_tool::plot::{Chart, Series, png};
-use host_tool::render::{Layout, RenderOptions, render_sim};
+use host_tool::plan::options::{Layout, RenderOptions};
+use host_tool::results::output::write_all_atomic;
+use host_tool::results::plot::{Chart, Series, png};
 use host_tool::scene::Scene;
+use host_tool::session::sim::render_sim;
 
 /// What to run.
 #[derive(Debug, Clone)]
@@ -79,7 +80,7 @@ pub fn bench_scaling(scene: &Scene, cfg: &ScalingConfig, out: &Path) -> Result<S
     std::fs::create_dir_all(out)
         .map_err(|e| HostError::Io(format!("cannot create {}: {e}", out.display())))?;
     let files = ["scaling.csv", "scaling.md", "scaling.png"].map(|f| out.join(f));
-    host_tool::output::check_writable(&files.iter().map(|p| p.as_path()).collect::<Vec<_>>())?;
+    host_tool::results::output::check_writable(&files.iter().map(|p| p.as_path()).collect::<Vec<_>>())?;
     let mut rows: Vec<ScalingRow> = Vec::new();
     let mut one: Option<(u64, u64)> = None;
     for &side in &cfg.sides {
@@ -123,7 +124,7 @@ fn run(
         .map_err(|e| e.context(&format!("{side}x{side}x{side} {}", layout.name())))?;
     let busy = r.busy.iter().flatten().copied().sum::<Busy>();
     let nodes = u32::from(side).pow(3);
-    let makespan = r.frame.makespan;
+    let makespan = r.frame.makespan.0;
     let host_wire = r.bytes.iter().map(|b| b[6]).max().unwrap_or(0) * opts.sim.host_link.byte_cycles();
     let (t1, busy1) = one.unwrap_or((makespan, busy.total()));
     Ok(ScalingRow {

@@ -1,9 +1,10 @@
 //! The cost map the host fits partitions to, against the board it models.
 
-use host_tool::direct;
-use host_tool::partition::Partition;
-use host_tool::render::{Initial, Layout, RenderOptions, render_partitioned, render_sim};
+use host_tool::plan::direct;
+use host_tool::plan::options::{Initial, Layout, RenderOptions};
+use host_tool::plan::partition::Partition;
 use host_tool::scene::Scene;
+use host_tool::session::sim::{render_partitioned, render_sim};
 
 /// Spheres crowded in the middle eighth of the grid, as in Figs. 9/10, on
 /// the ideal links: the map prices the nodes' CPU work (messages included),

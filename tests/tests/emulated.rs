@@ -10,13 +10,32 @@ use std::process::Command;
 use std::sync::{Mutex, MutexGuard};
 use std::time::Duration;
 
-use host_tool::backend::{Backend, render};
-use host_tool::qemu::{EmulatedBoard, Launch, QEMU, QemuArray};
-use host_tool::render::{Array, RenderOptions, check_frame, initial_partition, render_on, render_sim};
+use host_tool::error::HostError;
+use host_tool::plan::Plan;
+use host_tool::plan::options::RenderOptions;
+use host_tool::results::RenderResult;
 use host_tool::scene::Scene;
-use host_tool::serial::SerialArray;
+use host_tool::session::backend::{Backend, Rendered};
+use host_tool::session::clock::HostMicros;
+use host_tool::session::qemu::{EmulatedBoard, Launch, QEMU, QemuArray};
+use host_tool::session::serial::SerialArray;
+use host_tool::session::sim::render_sim;
+use host_tool::session::transport::Transport;
 use link_proto::{Balance, SlidePolicy};
 use node_fw::Port;
+
+/// Renders on the emulated boards of `backend`: their times are the host's.
+fn render(
+    s: &Scene,
+    opts: &RenderOptions,
+    backend: &Backend,
+    node_timeout: Duration,
+) -> Result<RenderResult<HostMicros>, HostError> {
+    match host_tool::session::backend::render(s, opts, backend, node_timeout)? {
+        Rendered::Boards(r) => Ok(r),
+        Rendered::Sim(_) => panic!("{backend:?} rendered on the in-memory board"),
+    }
+}
 
 /// One QEMU array at a time: eight emulators already fill both cores, and a
 /// test's node time-out must not fire because another test's array is busy.
@@ -119,14 +138,14 @@ fn the_in_memory_board_predicts_the_busiest_emulated_node() {
     let s = scene();
     let mut opts = options(None);
     opts.sim = sim_board::SimConfig::with_links([2, 2, 2], sim_board::LinkPreset::Emulated);
-    let busiest = |r: &host_tool::render::RenderResult| {
-        r.frame.loads.iter().map(|l| l.expect("every node reported its load").running).max().unwrap_or(0)
+    let busiest = |loads: &[Option<link_proto::LoadReport>]| {
+        loads.iter().map(|l| l.expect("every node reported its load").running).max().unwrap_or(0)
     };
-    let memory = busiest(&render_sim(&s, &opts).expect("in-memory render"));
+    let memory = busiest(&render_sim(&s, &opts).expect("in-memory render").frame.loads);
     let qemu =
         render(&s, &opts, &Backend::Qemu { board, firmware: firmware(board) }, Duration::from_secs(30))
             .expect("qemu render");
-    let emulated = busiest(&qemu);
+    let emulated = busiest(&qemu.frame.loads);
     let gap = memory.abs_diff(emulated) as f64 / emulated as f64;
     eprintln!(
         "busiest node: emulated {emulated}, in-memory {memory} ({:+.1}%)",
@@ -139,13 +158,12 @@ fn the_in_memory_board_predicts_the_busiest_emulated_node() {
 }
 
 /// One host session on running boards: connect, check, render.
-fn session(ptys: &[String], s: &Scene, opts: &RenderOptions) -> host_tool::render::RenderResult {
+fn session(ptys: &[String], s: &Scene, opts: &RenderOptions) -> RenderResult<HostMicros> {
     let names = (0..ptys.len()).map(|i| format!("node {i}")).collect();
     let mut array = SerialArray::open(ptys, names, Duration::from_secs(30)).expect("ptys open");
     array.connect().expect("every node says hello");
-    let partition = initial_partition(s, opts, array.capacity()).expect("partition");
-    check_frame(s, opts, &partition, array.capacity()).expect("fits");
-    render_on(&mut array, s, opts, partition).unwrap_or_else(|e| panic!("render: {e}"))
+    let plan = Plan::new(s, opts, array.capacity()).expect("the frame fits the boards");
+    host_tool::session::run(&mut array, s, &plan).unwrap_or_else(|e| panic!("render: {e}"))
 }
 
 #[test]
@@ -180,13 +198,12 @@ fn a_frozen_node_is_named_after_the_time_out() {
     // for dead; far below the test's bound.
     let mut array = SerialArray::open(&qemu.ptys, names, Duration::from_secs(8)).expect("ptys open");
     array.connect().expect("every node says hello");
-    let partition = initial_partition(&s, &opts, array.capacity()).expect("partition");
-    check_frame(&s, &opts, &partition, array.capacity()).expect("fits");
+    let plan = Plan::new(&s, &opts, array.capacity()).expect("the frame fits the boards");
     // Freeze node 5: its pty stays open, but it never answers again.
     let pid = qemu.pid(5).expect("node 5 runs").to_string();
     assert!(Command::new("kill").args(["-STOP", &pid]).status().is_ok_and(|s| s.success()));
     let started = std::time::Instant::now();
-    let err = match render_on(&mut array, &s, &opts, partition) {
+    let err = match host_tool::session::run(&mut array, &s, &plan) {
         Ok(_) => panic!("a render with a frozen node cannot finish"),
         Err(e) => e,
     };
@@ -218,7 +235,8 @@ fn a_crossed_cable_is_named_before_anything_renders() {
     let want = format!("node 0 (0,0,0) on {}: its +X and +Y cables are swapped", qemu.ptys[0]);
     assert_eq!(err.to_string(), want);
     // The same boards listed: every other cable is right.
-    let listing = host_tool::boards::list(&qemu.ptys, Some(array), Duration::from_secs(10)).expect("listed");
+    let listing =
+        host_tool::session::boards::list(&qemu.ptys, Some(array), Duration::from_secs(10)).expect("listed");
     assert!(listing.contains("not cabled as a 2x2x2 array"), "{listing}");
     assert_eq!(listing.matches(": its ").count(), 1, "one fault: {listing}");
 }

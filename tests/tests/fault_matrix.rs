@@ -9,9 +9,10 @@
 //! The generator's seed is fixed ([`SEED`]), so every CI run tries the same
 //! cases; `FAULT_MATRIX_SEED` and `FAULT_MATRIX_CASES` try others.
 
-use host_tool::direct;
-use host_tool::render::{RenderOptions, render_sim};
+use host_tool::plan::direct;
+use host_tool::plan::options::RenderOptions;
 use host_tool::scene::Scene;
+use host_tool::session::sim::render_sim;
 use link_proto::{Balance, SlidePolicy};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed, TestCaseError, TestRunner};
@@ -91,7 +92,7 @@ fn faults_with_sliding_keep_the_image_over_arrays_axes_and_intervals() {
         let policy = match c.balancing {
             Balancing::Static => None,
             Balancing::Paper => Some(SlidePolicy::Paper),
-            Balancing::Proportional => Some(host_tool::render::PROPORTIONAL),
+            Balancing::Proportional => Some(host_tool::plan::options::PROPORTIONAL),
         };
         opts.balance =
             policy.map(|policy| Balance { interval: c.interval, threshold: 1 << 16, step: 1, policy });

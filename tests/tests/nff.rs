@@ -8,10 +8,11 @@ use std::f64::consts::PI;
 use std::fmt::Write as _;
 
 use host_tool::compare::compare;
-use host_tool::frame::to_srgb8;
-use host_tool::render::{RenderOptions, render_sim};
+use host_tool::plan::options::RenderOptions;
 use host_tool::scene::{Reading, Scene, fit, nff};
-use host_tool::{direct, reference};
+use host_tool::session::frame::to_srgb8;
+use host_tool::session::sim::render_sim;
+use host_tool::{plan::direct, reference};
 
 /// Unit vector at azimuth `az` and elevation `el` in the frame whose third
 /// axis is `axis`.

@@ -2,12 +2,14 @@
 //! lost under back-pressure, and agreement with the f64 reference.
 
 use host_tool::compare::compare;
-use host_tool::frame::to_srgb8;
-use host_tool::render::{
-    Initial, Layout, RenderOptions, check_frame, initial_partition, render_partitioned, render_sim,
-};
+use host_tool::plan::options::{Initial, Layout, RenderOptions};
+use host_tool::plan::{check_frame, initial_partition};
 use host_tool::scene::{Light, Scene, SphereDesc};
-use host_tool::{direct, reference};
+use host_tool::session::clock::Cycles;
+use host_tool::session::frame::to_srgb8;
+use host_tool::session::sim::{render_partitioned, render_sim};
+use host_tool::session::transport::Transport;
+use host_tool::{plan::direct, reference};
 
 /// A small scene with mirrors, two lights and spheres across node boundaries.
 /// The paper's sliding rule, one cube a step, at `interval` cycles and
@@ -39,7 +41,12 @@ fn scene(reflect: f64, max_depth: u8) -> Scene {
     s
 }
 
-fn render(s: &Scene, array: [u16; 3], initial: Initial, size: [u16; 2]) -> host_tool::render::RenderResult {
+fn render(
+    s: &Scene,
+    array: [u16; 3],
+    initial: Initial,
+    size: [u16; 2],
+) -> host_tool::results::RenderResult<Cycles> {
     let mut opts = RenderOptions::new(array);
     opts.size = size;
     opts.initial = initial;
@@ -92,7 +99,7 @@ fn depth_one_queues_with_sliding_boundaries_finish() {
     // back behind refused ones: once this stalled with every node's pool full
     // of rays for a neighbour that had room only for higher classes.
     let slide = |policy| link_proto::Balance { interval: 500_000, threshold: 1 << 16, step: 1, policy };
-    let policies = [link_proto::SlidePolicy::Paper, host_tool::render::PROPORTIONAL];
+    let policies = [link_proto::SlidePolicy::Paper, host_tool::plan::options::PROPORTIONAL];
     for (seed, array) in [(7, [2, 2, 2]), (8, [4, 2, 1]), (9, [2, 3, 2])] {
         let s = Scene::random(24, seed, 1.0, [12, 12, 12]).unwrap();
         let want = direct::render(&s, 24, 24).unwrap();
@@ -207,7 +214,8 @@ fn a_partition_fitted_to_a_preview_keeps_the_image_bit_identical() {
         opts.layout = Layout::Preview;
         opts.balance = slide.then_some(paper_slide(1_000_000, 50 << 16));
         let r = render_sim(&s, &opts).unwrap_or_else(|e| panic!("{array:?}: {e}"));
-        let even = host_tool::partition::Partition::even(s.grid, array, r.partition.driving_axis).unwrap();
+        let even =
+            host_tool::plan::partition::Partition::even(s.grid, array, r.partition.driving_axis).unwrap();
         assert!(r.partition != even, "{array:?}: not fitted");
         assert_eq!(r.frame.rays_created, r.frame.rays_terminated, "{array:?}");
         assert!(r.frame.sums == want.sums, "{array:?}: the fitted partition changed the image");
@@ -245,7 +253,7 @@ fn columns_cut_per_slab_keep_the_image_bit_identical_sliding_or_not() {
     let want = direct::render(&s, size[0], size[1]).unwrap();
     let array = [3, 4, 3];
     // Driving axis y: slabs across z, columns along x, each slab its own.
-    let mut p = host_tool::partition::Partition::even(s.grid, array, 1).unwrap();
+    let mut p = host_tool::plan::partition::Partition::even(s.grid, array, 1).unwrap();
     p.slab_cuts = Some(vec![vec![0, 2, 9, s.grid[0]], vec![0, 7, 8, s.grid[0]], vec![0, 4, 12, s.grid[0]]]);
     p.row_cuts = Some((0..9).map(|r| vec![0, 1 + r, 10, 11, s.grid[1]]).collect());
     for (initial, slide) in [(Initial::Entry, false), (Initial::Parallel, false), (Initial::Entry, true)] {
@@ -316,8 +324,8 @@ fn a_node_reports_bad_input_the_host_did_not_catch() {
     };
     board.send(0, Message::Sphere(sphere));
     board.send(0, Message::SceneEnd(SceneEnd { spheres: 1, lights: 0 }));
-    let mut frame = host_tool::frame::FrameBuffer::new(1, 1, 1, 1);
-    board.run(&mut frame).expect("the node answers");
+    let mut frame = host_tool::session::frame::FrameBuffer::new(1, 1, 1, 1);
+    Transport::run(&mut board, &mut frame).expect("the node answers");
     let e = frame.errors.first().expect("the node reported an error");
     assert_eq!((e.node, e.code), (0, ErrorCode::OutOfRange));
     assert_eq!(e.a, node_fw::Field::Center as u32);
@@ -397,7 +405,9 @@ fn link_presets_change_time_not_the_image() {
     let ideal = with(LinkPreset::Ideal, None);
     let dma = with(LinkPreset::F413, Some(Transfer::Dma));
     let irq = with(LinkPreset::F413, None);
-    let sum = |r: &host_tool::render::RenderResult| r.busy.iter().flatten().copied().sum::<sim_board::Busy>();
+    let sum = |r: &host_tool::results::RenderResult<Cycles>| {
+        r.busy.iter().flatten().copied().sum::<sim_board::Busy>()
+    };
     let (ideal_busy, dma_busy, irq_busy) = (sum(&ideal), sum(&dma), sum(&irq));
     assert_eq!((ideal_busy.compute, ideal_busy.setup), (irq_busy.compute, irq_busy.setup));
     // Which rays go on grants depends on timing, so the messages differ a
@@ -448,8 +458,8 @@ fn a_node_names_the_check_that_failed() {
     ] {
         let mut board = Board::new(SimConfig::new([1, 1, 1]));
         board.send(0, msg);
-        let mut frame = host_tool::frame::FrameBuffer::new(1, 1, 1, 1);
-        board.run(&mut frame).expect("the node answers");
+        let mut frame = host_tool::session::frame::FrameBuffer::new(1, 1, 1, 1);
+        Transport::run(&mut board, &mut frame).expect("the node answers");
         let e = frame.errors.first().expect("the node reported an error");
         assert_eq!((e.code, Found::from_wire(e.b)), (want.0, Some(want.1)));
     }

@@ -6,9 +6,9 @@
 use std::io::Write;
 use std::time::Duration;
 
-use host_tool::backend::render_serial;
-use host_tool::render::RenderOptions;
+use host_tool::plan::options::RenderOptions;
 use host_tool::scene::Scene;
+use host_tool::session::backend::render_serial;
 use link_proto::{BoardInfo, Capacity, Frame, Hello, MAX_FRAME_LEN, Message, encode_frame};
 use serialport::{SerialPort, TTYPort};
 

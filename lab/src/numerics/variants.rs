@@ -20,13 +20,13 @@ use std::path::Path;
 use std::time::Instant;
 
 use host_tool::compare::{Comparison, compare};
-use host_tool::direct::{DirectImage, PrimaryHit};
 use host_tool::error::HostError;
-use host_tool::frame::to_srgb8;
-use host_tool::output::write_atomic;
-use host_tool::plot::{Chart, Series, png};
+use host_tool::plan::direct::{DirectImage, PrimaryHit};
 use host_tool::reference::{self, RefImage};
+use host_tool::results::output::write_atomic;
+use host_tool::results::plot::{Chart, Series, png};
 use host_tool::scene::Scene;
+use host_tool::session::frame::to_srgb8;
 
 /// One variant's measurements on one scene.
 #[derive(Debug, Clone)]
@@ -96,12 +96,12 @@ pub fn measure(name: &str, scene: &Scene, size: [u16; 2]) -> Result<Vec<Measured
         let ns_per_ray = seconds * 1e9 / img.rays.max(1) as f64;
         out.push(Measured { variant, scene: name.to_string(), ns_per_ray, error });
     };
-    let (shipped, t) = timed(|| host_tool::direct::render(scene, w, h))?;
+    let (shipped, t) = timed(|| host_tool::plan::direct::render(scene, w, h))?;
     push("fixed-q16.16-q2.30", &shipped, t);
     let coarse = positions_rounded(scene, 12);
-    let (img, t) = timed(|| host_tool::direct::render(&coarse, w, h))?;
+    let (img, t) = timed(|| host_tool::plan::direct::render(&coarse, w, h))?;
     push("fixed-pos-q.12", &img, t);
-    let (img, t) = timed(|| host_tool::direct::render_with_camera_bits(scene, w, h, 16))?;
+    let (img, t) = timed(|| host_tool::plan::direct::render_with_camera_bits(scene, w, h, 16))?;
     push("fixed-camera-q2.16", &img, t);
     let (img, t) = timed(|| Ok(reference::render_f32(scene, w, h)))?;
     push("f32", &float_as_direct(&img), t);

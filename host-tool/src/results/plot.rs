@@ -57,7 +57,7 @@ pub fn png(panels: &[(Chart, Vec<Series>)], width: u32, panel_height: u32) -> Re
         }
         root.present().map_err(plot_err)?;
     }
-    crate::output::png(width as u16, height as u16, &rgb)
+    crate::results::output::png(width as u16, height as u16, &rgb)
 }
 
 /// A short tick label: three significant digits, scientific for large values.

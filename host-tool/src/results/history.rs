@@ -1,14 +1,15 @@
 //! Boundary positions over time, rebuilt from the slides the nodes reported.
 
-use crate::frame::SlideSeen;
-use crate::partition::Partition;
+use crate::plan::partition::Partition;
+use crate::session::clock::Clock;
+use crate::session::frame::SlideSeen;
 
 /// One boundary position: at `time`, boundary `index` (between node rows
 /// `index` and `index + 1` along the driving axis) of node row `row` is at `position`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct BoundaryAt {
-    /// Virtual time.
-    pub time: u64,
+pub struct BoundaryAt<T> {
+    /// When it got there (the start of the run for initial positions).
+    pub time: T,
     /// Row of nodes along the driving axis (index over the other two axes).
     pub row: usize,
     /// Boundary index within the row.
@@ -22,7 +23,7 @@ pub struct BoundaryAt {
 /// by their count (the two nodes of a boundary report over different host
 /// links, so arrival order can differ); a note that arrives before an
 /// earlier slide's is dated when that one arrived.
-pub fn boundary_history(partition: &Partition, slides: &[SlideSeen]) -> Vec<BoundaryAt> {
+pub fn boundary_history<T: Clock>(partition: &Partition, slides: &[SlideSeen<T>]) -> Vec<BoundaryAt<T>> {
     let d = usize::from(partition.driving_axis);
     let nodes = partition.len();
     let stride = match d {
@@ -40,11 +41,16 @@ pub fn boundary_history(partition: &Partition, slides: &[SlideSeen]) -> Vec<Boun
     for n in 0..nodes {
         let c = usize::from(partition.coord(n)[d]);
         if c + 1 < usize::from(partition.array[d]) {
-            out.push(BoundaryAt { time: 0, row: row_of(n), index: c, position: partition.bounds(n).hi[d] });
+            out.push(BoundaryAt {
+                time: T::default(),
+                row: row_of(n),
+                index: c,
+                position: partition.bounds(n).hi[d],
+            });
         }
     }
     // Each note, under the node on the boundary's low side.
-    let mut moves: Vec<(usize, u16, u64, u16)> = slides
+    let mut moves: Vec<(usize, u16, T, u16)> = slides
         .iter()
         .filter_map(|s| {
             let n = usize::from(s.node);
@@ -54,7 +60,7 @@ pub fn boundary_history(partition: &Partition, slides: &[SlideSeen]) -> Vec<Boun
         .collect();
     moves.sort_unstable_by_key(|&(low, count, at, _)| (low, count, at));
     let mut dated = Vec::with_capacity(moves.len());
-    let mut last = (usize::MAX, 0);
+    let mut last = (usize::MAX, T::default());
     for (low, _, at, position) in moves {
         let time = if last.0 == low { at.max(last.1) } else { at };
         last = (low, time);
@@ -67,7 +73,7 @@ pub fn boundary_history(partition: &Partition, slides: &[SlideSeen]) -> Vec<Boun
     out
 }
 
-/// How much boundaries moved within a window of virtual time.
+/// How much boundaries moved within a window of time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Churn {
     /// Boundary moves in the window.
@@ -78,7 +84,7 @@ pub struct Churn {
 }
 
 /// Moves and reversals of `history` ([`boundary_history`]) in `[from, to)`.
-pub fn churn(history: &[BoundaryAt], from: u64, to: u64) -> Churn {
+pub fn churn<T: Clock>(history: &[BoundaryAt<T>], from: T, to: T) -> Churn {
     let mut last: std::collections::BTreeMap<(usize, usize), (u16, i8)> = Default::default();
     let mut out = Churn::default();
     for b in history {
@@ -106,19 +112,20 @@ pub fn churn(history: &[BoundaryAt], from: u64, to: u64) -> Churn {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::session::clock::Cycles;
 
-    fn at(time: u64, index: usize, position: u16) -> BoundaryAt {
-        BoundaryAt { time, row: 0, index, position }
+    fn at(time: u64, index: usize, position: u16) -> BoundaryAt<Cycles> {
+        BoundaryAt { time: Cycles(time), row: 0, index, position }
     }
 
     #[test]
     fn churn_counts_moves_in_the_window_and_reversals() {
         // Boundary 0 starts at 8, goes up, up, back down; boundary 1 moves once.
         let h = [at(0, 0, 8), at(0, 1, 16), at(10, 0, 9), at(20, 0, 10), at(30, 0, 9), at(40, 1, 15)];
-        assert_eq!(churn(&h, 0, 100), Churn { moves: 4, reversals: 1 });
+        assert_eq!(churn(&h, Cycles(0), Cycles(100)), Churn { moves: 4, reversals: 1 });
         // Only the moves at 20 and 30 fall in [15, 35): one of them reverses.
-        assert_eq!(churn(&h, 15, 35), Churn { moves: 2, reversals: 1 });
-        assert_eq!(churn(&h, 50, 60), Churn::default());
+        assert_eq!(churn(&h, Cycles(15), Cycles(35)), Churn { moves: 2, reversals: 1 });
+        assert_eq!(churn(&h, Cycles(50), Cycles(60)), Churn::default());
     }
 
     #[test]
@@ -129,13 +136,13 @@ mod tests {
         // node 1's note reaches the host first.
         let p = Partition::even([16, 4, 4], [2, 1, 1], 0).unwrap();
         let seen = |at, node, boundary, high_side, count| SlideSeen {
-            at,
+            at: Cycles(at),
             node,
             note: SlideNote { boundary, high_side, count },
         };
         let notes = [seen(50, 1, 8, false, 2), seen(70, 0, 9, true, 1)];
         let h = boundary_history(&p, &notes);
-        let moves: Vec<(u64, u16)> = h.iter().map(|b| (b.time, b.position)).collect();
+        let moves: Vec<(u64, u16)> = h.iter().map(|b| (b.time.0, b.position)).collect();
         assert_eq!(moves, [(0, 8), (70, 9), (70, 8)]);
     }
 }

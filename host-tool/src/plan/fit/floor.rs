@@ -17,9 +17,9 @@
 
 use std::num::NonZeroUsize;
 
-use crate::cost_map::CostMap;
 use crate::error::HostError;
-use crate::partition::Partition;
+use crate::plan::cost_map::CostMap;
+use crate::plan::partition::Partition;
 
 /// Work (rectangles times their row program's steps) above which [`floor`]
 /// declines: a few seconds on this machine's two cores. A 32^3 grid on 8x8x8
@@ -274,8 +274,8 @@ fn rectangle(p: &[u64], w: usize, [s0, s1, c0, c1]: [usize; 4]) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::{floor, least_busiest};
-    use crate::cost_map::CostMap;
-    use crate::partition::Partition;
+    use crate::plan::cost_map::CostMap;
+    use crate::plan::partition::Partition;
     use proptest::prelude::*;
 
     /// Every way to cut `len` units into `parts` non-empty parts.

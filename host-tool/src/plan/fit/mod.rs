@@ -1,4 +1,4 @@
-//! Fitting a partition to a cost map ([`crate::cost_map`]): the planes
+//! Fitting a partition to a cost map ([`crate::plan::cost_map`]): the planes
 //! across the driving axis by rectilinear partitioning and a local search,
 //! then each slab's own columns, each row along the driving axis exactly,
 //! and every node's cost with rays routed as the nodes route them; the
@@ -15,9 +15,9 @@ pub use rows::{RowProfile, row_cuts};
 
 use link_proto::Boundaries;
 
-use crate::cost_map::CostMap;
 use crate::error::{HostError, input};
-use crate::partition::Partition;
+use crate::plan::cost_map::CostMap;
+use crate::plan::partition::Partition;
 
 impl Partition {
     /// A partition fitted to a cost map: the one whose busiest node pays
@@ -210,8 +210,8 @@ fn score(costs: &[u64]) -> Score {
 #[cfg(test)]
 mod tests {
     use super::{RowProfile, bottleneck_cuts, row_cuts};
-    use crate::cost_map::CostMap;
-    use crate::partition::Partition;
+    use crate::plan::cost_map::CostMap;
+    use crate::plan::partition::Partition;
     use link_proto::Boundaries;
     use proptest::prelude::*;
 

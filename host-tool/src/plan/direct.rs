@@ -10,9 +10,9 @@ use node_fw::shading::{Child, Scene as Shading, Surface};
 use node_fw::{CubeBox, DigitalLine, Direction, Grid, Line, Outcome, Point, Query, Sphere, Subregion};
 use node_fw::{limits::Scalar, sphere::Hit};
 
-use crate::camera::PixelBasis;
-use crate::cost_map::CostMap;
 use crate::error::{HostError, input};
+use crate::plan::camera::PixelBasis;
+use crate::plan::cost_map::CostMap;
 use crate::scene::Scene;
 
 /// The whole grid in one subregion: up to 64^3 cubes and 65535 references.
@@ -79,7 +79,7 @@ pub fn add_initial_rays(
     let [width, height] = size;
     let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
     let camera = PixelBasis::new(&scene.camera(), width, height).msg();
-    for cell in crate::entry::entry_cells(&camera, &grid, [width, height]).into_iter().flatten() {
+    for cell in crate::plan::entry::entry_cells(&camera, &grid, [width, height]).into_iter().flatten() {
         if creation {
             map.add_compute(cell, cost.create + cost.pass);
         } else {

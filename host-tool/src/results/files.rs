@@ -8,10 +8,12 @@ use serde_json::json;
 use sim_board::Busy;
 
 use crate::error::HostError;
-use crate::history::boundary_history;
-use crate::plot::{Chart, Series, png};
-use crate::render::{RenderOptions, RenderResult};
+use crate::plan::options::RenderOptions;
+use crate::results::RenderResult;
+use crate::results::history::boundary_history;
+use crate::results::plot::{Chart, Series, png};
 use crate::scene::Scene;
+use crate::session::clock::Clock;
 
 /// Busy cycles by kind, and waiting.
 fn busy_json(b: &Busy, waiting: u64) -> serde_json::Value {
@@ -19,15 +21,17 @@ fn busy_json(b: &Busy, waiting: u64) -> serde_json::Value {
 }
 
 /// Per neighbour port and the host port: bytes sent and received, and the
-/// fraction of the frame's makespan the wire out spent carrying them.
-fn ports_json(opts: &RenderOptions, r: &RenderResult, id: usize) -> serde_json::Value {
+/// fraction of the frame's makespan the wire out spent carrying them (where
+/// the links are modelled in the cycles the makespan counts).
+fn ports_json<T: Clock>(opts: &RenderOptions, r: &RenderResult<T>, id: usize) -> serde_json::Value {
     let names = ["+x", "-x", "+y", "-y", "+z", "-z", "host"];
     let mut ports = serde_json::Map::new();
     for (p, name) in names.iter().enumerate() {
         let bytes = r.bytes[id][p];
         let received = r.bytes_in.get(id).map_or(0, |b| b[p]);
         let spec = if p == 6 { &opts.sim.host_link } else { &opts.sim.link };
-        let utilisation = (bytes * spec.byte_cycles()) as f64 / r.frame.makespan.max(1) as f64;
+        let utilisation =
+            r.frame.makespan.cycles().map(|end| (bytes * spec.byte_cycles()) as f64 / end.max(1) as f64);
         if bytes > 0 || received > 0 {
             let port = json!({"bytes": bytes, "received": received, "utilisation": utilisation});
             ports.insert(name.to_string(), port);
@@ -37,7 +41,7 @@ fn ports_json(opts: &RenderOptions, r: &RenderResult, id: usize) -> serde_json::
 }
 
 /// max / mean of the nodes' running time.
-pub fn imbalance(r: &RenderResult) -> f64 {
+pub fn imbalance<T>(r: &RenderResult<T>) -> f64 {
     let busy: Vec<f64> = r.frame.loads.iter().map(|l| l.map_or(0.0, |l| l.running as f64)).collect();
     let mean = busy.iter().sum::<f64>() / busy.len().max(1) as f64;
     busy.iter().cloned().fold(0.0, f64::max) / mean.max(f64::MIN_POSITIVE)
@@ -54,20 +58,20 @@ pub struct Provenance {
 
 impl Provenance {
     /// The unit of the frame's and the nodes' times.
-    fn time_units(&self) -> serde_json::Value {
-        if self.backend == "sim" {
-            json!({"makespan": "cycles (virtual)", "running": "cycles (virtual)", "waiting": "cycles (virtual)",
-                   "busy": "cycles (virtual)", "wall_seconds": "s"})
-        } else {
-            json!({"makespan": "us (host clock)", "running": "board clock ticks (core cycles; instructions under QEMU)",
-                   "waiting": "board clock ticks (core cycles; instructions under QEMU)", "wall_seconds": "s"})
-        }
+    fn time_units<T: Clock>(&self) -> serde_json::Value {
+        json!({"makespan": T::UNIT, "running": T::NODE_UNIT, "waiting": T::NODE_UNIT,
+               "busy": T::NODE_UNIT, "wall_seconds": "s"})
     }
 }
 
 /// The run summary: where it came from, the frame's totals, the options, the
 /// links, each node.
-pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult, from: &Provenance) -> String {
+pub fn summary_json<T: Clock>(
+    scene: &Scene,
+    opts: &RenderOptions,
+    r: &RenderResult<T>,
+    from: &Provenance,
+) -> String {
     let f = &r.frame;
     // The in-memory board models its links and sees inside its nodes; boards
     // have links of their own, and their busy time is their own business.
@@ -107,8 +111,8 @@ pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult, from:
         "backend": from.backend,
         "versions": {"host_tool": env!("CARGO_PKG_VERSION"), "protocol": link_proto::PROTOCOL_VERSION},
         "scene": from.scene,
-        "units": from.time_units(),
-        "makespan": f.makespan,
+        "units": from.time_units::<T>(),
+        "makespan": f.makespan.ticks(),
         "imbalance": imbalance(r),
         "rays_created": f.rays_created,
         "rays_terminated": f.rays_terminated,
@@ -143,8 +147,8 @@ pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult, from:
         }),
         "link": modelled.then(|| json!({
             "preset": opts.link_preset.name(),
-            "neighbour": crate::links::spec_json(&opts.sim.link),
-            "host": crate::links::spec_json(&opts.sim.host_link),
+            "neighbour": crate::session::links::spec_json(&opts.sim.link),
+            "host": crate::session::links::spec_json(&opts.sim.host_link),
         })),
         "faults": opts.sim.faults.map(|f| json!({"corrupt": f.corrupt, "drop": f.drop, "dup": f.dup, "delay": f.delay, "seed": f.seed})),
         "retransmissions": r.links.retransmitted,
@@ -157,7 +161,7 @@ pub fn summary_json(scene: &Scene, opts: &RenderOptions, r: &RenderResult, from:
 }
 
 /// One row per node: its place, time, work and bytes sent.
-pub fn loads_csv(r: &RenderResult) -> String {
+pub fn loads_csv<T>(r: &RenderResult<T>) -> String {
     let mut s = String::from(
         "node,x,y,z,running,waiting,load,rays,sphere_tests,cube_steps,refused,busy_polls,bytes_sent\n",
     );
@@ -178,15 +182,15 @@ pub fn loads_csv(r: &RenderResult) -> String {
     s
 }
 
-/// Per-node load and boundary positions over virtual time.
-pub fn history_plot(r: &RenderResult) -> Result<Vec<u8>, HostError> {
+/// Per-node load and boundary positions over the run's time.
+pub fn history_plot<T: Clock>(r: &RenderResult<T>) -> Result<Vec<u8>, HostError> {
     let nodes = r.frame.loads.len();
     let mut per_node: Vec<Vec<(f64, f64)>> = vec![Vec::new(); nodes];
     for (at, l) in &r.frame.history {
         // Clamped for the log axis: idle (0) and never waiting (infinite) stay on the chart.
         let load = load(l.running, l.waiting).clamp(0.01, 100.0);
         if let Some(v) = per_node.get_mut(usize::from(l.node)) {
-            v.push((*at as f64, load));
+            v.push((at.ticks() as f64, load));
         }
     }
     let loads: Vec<Series> = per_node
@@ -200,11 +204,11 @@ pub fn history_plot(r: &RenderResult) -> Result<Vec<u8>, HostError> {
     for b in &history {
         let line = lines.entry((b.row, b.index)).or_default();
         if let Some(&(_, prev)) = line.last() {
-            line.push((b.time as f64, prev));
+            line.push((b.time.ticks() as f64, prev));
         }
-        line.push((b.time as f64, f64::from(b.position)));
+        line.push((b.time.ticks() as f64, f64::from(b.position)));
     }
-    let end = r.frame.makespan as f64;
+    let end = r.frame.makespan.ticks() as f64;
     let boundaries: Vec<Series> = lines
         .into_iter()
         .map(|((row, index), mut points)| {
@@ -219,8 +223,8 @@ pub fn history_plot(r: &RenderResult) -> Result<Vec<u8>, HostError> {
         &[
             (
                 Chart {
-                    title: "Load (running / waiting) per node and interval".into(),
-                    x_label: "virtual time (cycles)".into(),
+                    title: "Load (running / waiting) per node and interval, drawn within [0.01, 100]".into(),
+                    x_label: format!("time, {}", T::UNIT),
                     y_label: "load".into(),
                     log_x: false,
                     log_y: true,
@@ -230,7 +234,7 @@ pub fn history_plot(r: &RenderResult) -> Result<Vec<u8>, HostError> {
             (
                 Chart {
                     title: format!("Boundary positions along the driving axis ({axis})"),
-                    x_label: "virtual time (cycles)".into(),
+                    x_label: format!("time, {}", T::UNIT),
                     y_label: "cube".into(),
                     log_x: false,
                     log_y: false,
@@ -245,11 +249,11 @@ pub fn history_plot(r: &RenderResult) -> Result<Vec<u8>, HostError> {
 
 /// The load history: one row per node and interval,
 /// `time,node,interval,running,waiting,load` (load `inf` for no waiting).
-pub fn load_history_csv(r: &RenderResult) -> String {
+pub fn load_history_csv<T: Clock>(r: &RenderResult<T>) -> String {
     let mut s = String::from("time,node,interval,running,waiting,load\n");
     for (at, l) in &r.frame.history {
         let load = load(l.running, l.waiting);
-        s += &format!("{at},{},{},{},{},{load:.4}\n", l.node, l.interval, l.running, l.waiting);
+        s += &format!("{},{},{},{},{},{load:.4}\n", at.ticks(), l.node, l.interval, l.running, l.waiting);
     }
     s
 }
@@ -258,10 +262,10 @@ pub fn load_history_csv(r: &RenderResult) -> String {
 /// then one row per committed slide, `time,row,boundary,position` (row: the
 /// line of nodes along the driving axis; boundary: between its nodes
 /// `boundary` and `boundary + 1`; position: in cubes along the driving axis).
-pub fn boundary_history_csv(r: &RenderResult) -> String {
+pub fn boundary_history_csv<T: Clock>(r: &RenderResult<T>) -> String {
     let mut s = String::from("time,row,boundary,position\n");
     for b in boundary_history(&r.partition, &r.frame.slides) {
-        s += &format!("{},{},{},{}\n", b.time, b.row, b.index, b.position);
+        s += &format!("{},{},{},{}\n", b.time.ticks(), b.row, b.index, b.position);
     }
     s
 }

@@ -4,8 +4,8 @@
 use node_fw::CubeBox;
 use node_fw::link::Port;
 
-use crate::cost_map::CostMap;
-use crate::partition::Partition;
+use crate::plan::cost_map::CostMap;
+use crate::plan::partition::Partition;
 
 impl Partition {
     /// Every node's cost under `map`, rays routed as the nodes route them

@@ -4,12 +4,15 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use crate::error::{HostError, input};
-use crate::qemu::{EmulatedBoard, Launch, QemuArray};
-use crate::render::{
-    Array, RenderOptions, RenderResult, check_frame, initial_partition, render_on, render_sim,
-};
+use crate::plan::options::RenderOptions;
+use crate::plan::{Plan, initial_partition};
+use crate::results::RenderResult;
 use crate::scene::Scene;
-use crate::serial::SerialArray;
+use crate::session::clock::{Cycles, HostMicros};
+use crate::session::qemu::{EmulatedBoard, Launch, QemuArray};
+use crate::session::serial::SerialArray;
+use crate::session::sim::render_sim;
+use crate::session::transport::Transport;
 
 /// What carries the frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -32,6 +35,26 @@ pub enum Backend {
     },
 }
 
+impl Backend {
+    /// The name summaries give it: `sim`, `qemu (<board>)` or `serial`.
+    pub fn name(&self) -> String {
+        match self {
+            Self::Sim => "sim".to_string(),
+            Self::Qemu { board, .. } => format!("qemu ({})", board.name()),
+            Self::Serial { .. } => "serial".to_string(),
+        }
+    }
+}
+
+/// A frame rendered on some backend, its times on that backend's clock.
+#[derive(Debug, Clone)]
+pub enum Rendered {
+    /// On the in-memory board, in virtual cycles.
+    Sim(RenderResult<Cycles>),
+    /// On boards, emulated or real, timed by the host's clock.
+    Boards(RenderResult<HostMicros>),
+}
+
 /// Renders `scene` on `backend`; a node silent for `node_timeout` ends the
 /// run with an error naming it.
 pub fn render(
@@ -39,10 +62,23 @@ pub fn render(
     opts: &RenderOptions,
     backend: &Backend,
     node_timeout: Duration,
-) -> Result<RenderResult, HostError> {
+) -> Result<Rendered, HostError> {
+    match backend {
+        Backend::Sim => render_sim(scene, opts).map(Rendered::Sim),
+        boards => render_boards(scene, opts, boards, node_timeout).map(Rendered::Boards),
+    }
+}
+
+/// Renders `scene` on emulated or real boards.
+fn render_boards(
+    scene: &Scene,
+    opts: &RenderOptions,
+    backend: &Backend,
+    node_timeout: Duration,
+) -> Result<RenderResult<HostMicros>, HostError> {
     let nodes: usize = opts.array.iter().map(|&n| usize::from(n)).product();
     match backend {
-        Backend::Sim => render_sim(scene, opts),
+        Backend::Sim => Err(input("the in-memory board is not a board behind a serial device")),
         Backend::Qemu { board, firmware } => {
             // Check the scene before starting eight emulators.
             initial_partition(scene, opts, sim_board::SimNode::capacity())?;
@@ -79,7 +115,7 @@ pub fn render_serial(
     ports: &[String],
     order_ports: bool,
     node_timeout: Duration,
-) -> Result<RenderResult, HostError> {
+) -> Result<RenderResult<HostMicros>, HostError> {
     let names = (0..opts.array.iter().map(|&n| usize::from(n)).product())
         .map(|i| {
             let c = node_fw::wiring::coord_of(i, opts.array);
@@ -95,7 +131,6 @@ pub fn render_serial(
     }
     array.check_cabling(opts.array)?;
     // Fitted to what the boards can hold, known once they have said hello.
-    let partition = initial_partition(scene, opts, array.capacity())?;
-    check_frame(scene, opts, &partition, array.capacity())?;
-    render_on(&mut array, scene, opts, partition)
+    let plan = Plan::new(scene, opts, array.capacity())?;
+    crate::session::run(&mut array, scene, &plan)
 }

@@ -7,9 +7,9 @@ use std::time::Duration;
 use link_proto::{BoardId, ClockSource, Hello};
 use node_fw::Port;
 
-use crate::cabling::{self, Reported, port_name};
 use crate::error::HostError;
-use crate::serial::SerialArray;
+use crate::session::cabling::{self, Reported, port_name};
+use crate::session::serial::SerialArray;
 
 /// How long the boards get to report their cables when no array is given.
 const LISTEN: Duration = Duration::from_secs(2);

@@ -14,14 +14,14 @@
 //!   against its row's mean node;
 //! - `half create`: the floor and its ratio with initial rays at half cost.
 //!
-//! `cargo run --release -p host-tool --example floor_sensitivity [SEED]`
+//! `cargo run --release -p lab --example floor_sensitivity [SEED]`
 //! (seed 1986 by default, as `bench paper`'s; about a minute).
 
-use host_tool::cost_map::CostMap;
-use host_tool::direct::{add_initial_rays, measure_costs};
 use host_tool::error::{HostError, input};
-use host_tool::fit::floor::floor;
-use host_tool::partition::view_axis;
+use host_tool::plan::cost_map::CostMap;
+use host_tool::plan::direct::{add_initial_rays, measure_costs};
+use host_tool::plan::fit::floor::floor;
+use host_tool::plan::partition::view_axis;
 use host_tool::scene::Scene;
 use sim_board::CostModel;
 

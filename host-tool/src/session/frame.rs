@@ -1,9 +1,10 @@
 //! The frame buffer: integer pixel sums, credit accounting, loads, errors.
 
 use link_proto::{ErrorReport, LoadReport, Message, PROTOCOL_VERSION, Retire, SlideNote};
-use sim_board::HostEndpoint;
 
 use crate::error::HostError;
+use crate::session::clock::Clock;
+use crate::session::transport::Endpoint;
 
 /// The most pixels an image may have: 2^26, such as 8192 x 8192. The host
 /// keeps three 64-bit sums per pixel (1.5 GiB at this size) and the image
@@ -27,9 +28,9 @@ pub fn check_size(width: u16, height: u16) -> Result<(), HostError> {
 
 /// A committed slide as the host heard of it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct SlideSeen {
+pub struct SlideSeen<T> {
     /// Arrival time of the note.
-    pub at: u64,
+    pub at: T,
     /// The node that received the slab.
     pub node: u16,
     /// What it reported.
@@ -38,7 +39,7 @@ pub struct SlideSeen {
 
 /// Everything the host collects during a frame.
 #[derive(Debug, Clone)]
-pub struct FrameBuffer {
+pub struct FrameBuffer<T> {
     /// Image width.
     pub width: u16,
     /// Image height.
@@ -53,8 +54,8 @@ pub struct FrameBuffer {
     pub rays_created: u64,
     /// Rays retired.
     pub rays_terminated: u64,
-    /// Virtual time of the last retirement.
-    pub makespan: u64,
+    /// Arrival time of the last retirement.
+    pub makespan: T,
     /// Final load report per node.
     pub loads: Vec<Option<LoadReport>>,
     /// Errors reported by nodes.
@@ -68,14 +69,14 @@ pub struct FrameBuffer {
     /// Nodes that said hello again mid-frame (restarted).
     pub restarted: Vec<u16>,
     /// Interval load reports: (arrival time, report).
-    pub history: Vec<(u64, LoadReport)>,
+    pub history: Vec<(T, LoadReport)>,
     /// Committed slides, as their receiving nodes reported them.
-    pub slides: Vec<SlideSeen>,
+    pub slides: Vec<SlideSeen<T>>,
     /// Slides refused for capacity: (arrival time, receiving node, boundary).
-    pub refused_slides: Vec<(u64, u16, u16)>,
+    pub refused_slides: Vec<(T, u16, u16)>,
 }
 
-impl FrameBuffer {
+impl<T: Clock> FrameBuffer<T> {
     /// An empty frame of `width` x `height` for `nodes` nodes, `credit` per pixel.
     pub fn new(width: u16, height: u16, nodes: usize, credit: u64) -> Self {
         let pixels = usize::from(width) * usize::from(height);
@@ -87,7 +88,7 @@ impl FrameBuffer {
             credit_back: 0,
             rays_created: pixels as u64,
             rays_terminated: 0,
-            makespan: 0,
+            makespan: T::default(),
             loads: vec![None; nodes],
             errors: Vec::new(),
             version_mismatch: Vec::new(),
@@ -105,7 +106,7 @@ impl FrameBuffer {
         self.credit_back == self.credit_total
     }
 
-    fn retire(&mut self, at: u64, r: Retire) {
+    fn retire(&mut self, at: T, r: Retire) {
         if let Some(px) = self.sums.get_mut(r.pixel as usize) {
             for (s, c) in px.iter_mut().zip(r.rgb) {
                 *s += u64::from(c);
@@ -130,8 +131,8 @@ pub fn to_srgb8(sum: u64) -> u8 {
     (s * 255.0).round() as u8
 }
 
-impl HostEndpoint for FrameBuffer {
-    fn receive(&mut self, node: u16, at: u64, msg: Message) {
+impl<T: Clock> Endpoint<T> for FrameBuffer<T> {
+    fn receive(&mut self, node: u16, at: T, msg: Message) {
         match msg {
             Message::Retire(batch) => {
                 for &r in batch.records() {

@@ -17,11 +17,12 @@ use link_proto::{BoardId, BoardInfo, Capacity, Hello, Message, PROTOCOL_VERSION}
 use node_fw::Port;
 use node_fw::reliable::{Channel, ChannelStats};
 use serialport::SerialPort;
-use sim_board::{Faults, FaultyStream, HostEndpoint, RunStats};
+use sim_board::{Faults, FaultyStream};
 
-use crate::cabling::{self, Reported};
 use crate::error::HostError;
-use crate::render::Array;
+use crate::session::cabling::{self, Reported};
+use crate::session::clock::HostMicros;
+use crate::session::transport::{Endpoint, RunEnd, Transport};
 
 /// Unacknowledged frames per node link on the host's side.
 const WINDOW: usize = 8;
@@ -232,7 +233,7 @@ impl SerialArray {
 
     /// One pass over the devices: read, deliver (with the host's time in
     /// microseconds), write. Returns whether any byte moved.
-    fn pump(&mut self, deliver: &mut dyn FnMut(u16, u64, Message)) -> Result<bool, HostError> {
+    fn pump(&mut self, deliver: &mut dyn FnMut(u16, HostMicros, Message)) -> Result<bool, HostError> {
         let now = self.micros();
         let mut moved = false;
         let names = &self.names;
@@ -266,7 +267,7 @@ impl SerialArray {
                 }
             }
             let (unsent, faults) = (&mut link.unsent, &mut link.faults);
-            link.channel.transmit(now, |frame| {
+            link.channel.transmit(now.0, |frame| {
                 let room = unsent.len() + frame.len() <= TX_QUEUE;
                 match faults.as_mut() {
                     Some((_, outbound)) if room => outbound.pass(frame, unsent),
@@ -298,7 +299,7 @@ impl SerialArray {
     /// that stopped first is the one to blame).
     fn check_alive(&self) -> Result<(), HostError> {
         let now = self.micros();
-        let silence = |l: &Link| l.channel.unanswered_for(now);
+        let silence = |l: &Link| l.channel.unanswered_for(now.0);
         let Some((i, link)) = self.links.iter().enumerate().max_by_key(|(_, l)| silence(l)) else {
             return Ok(());
         };
@@ -318,12 +319,14 @@ impl SerialArray {
         self.names.get(i).cloned().unwrap_or_else(|| format!("node {i}"))
     }
 
-    fn micros(&self) -> u64 {
-        self.started.elapsed().as_micros() as u64
+    fn micros(&self) -> HostMicros {
+        HostMicros(self.started.elapsed().as_micros() as u64)
     }
 }
 
-impl Array for SerialArray {
+impl Transport for SerialArray {
+    type Time = HostMicros;
+
     /// The smallest capacity over the nodes.
     fn capacity(&self) -> Capacity {
         let caps = self.links.iter().filter_map(|l| l.hello.map(|h| h.capacity));
@@ -359,7 +362,7 @@ impl Array for SerialArray {
 
     /// Moves messages until `host` is finished; fails naming a node that
     /// stops answering.
-    fn run<H: HostEndpoint>(&mut self, host: &mut H) -> Result<RunStats, HostError> {
+    fn run(&mut self, host: &mut impl Endpoint<HostMicros>) -> Result<RunEnd<HostMicros>, HostError> {
         for (node, msg) in std::mem::take(&mut self.greeted) {
             host.receive(node, self.micros(), msg);
         }
@@ -391,7 +394,7 @@ impl Array for SerialArray {
         }
         // Let the last acknowledgements out so the nodes' windows drain.
         self.pump(&mut |_, _, _| {})?;
-        Ok(RunStats { end: self.micros(), rounds })
+        Ok(RunEnd { end: self.micros(), rounds })
     }
 }
 

@@ -4,7 +4,7 @@
 //!
 //! Node `i` runs the node firmware; its host UART is a pty the host opens as
 //! a serial device. Each neighbour UART is a Unix socket that QEMU connects
-//! to and the [`relay`](crate::relay) reads from and writes to. Some emulated
+//! to and the [`relay`](crate::session::relay) reads from and writes to. Some emulated
 //! UARTs (the STM32 ones) block the emulator while a write cannot be
 //! delivered, so two boards wired socket to socket that write to each other
 //! at once would stall for ever; the relay always reads, and buffers what the
@@ -25,7 +25,7 @@ use node_fw::wiring::{coord_of, index_of, uart_ports};
 use sim_board::Faults;
 
 use crate::error::{HostError, input};
-use crate::relay::Relay;
+use crate::session::relay::Relay;
 
 /// The QEMU binary.
 pub const QEMU: &str = "qemu-system-arm";

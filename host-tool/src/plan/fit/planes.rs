@@ -1,7 +1,7 @@
 //! Rectilinear partitioning (Nicol 1994): the planes across the driving
 //! axis, each axis cut to minimise the busiest row of nodes.
 
-use crate::partition::Partition;
+use crate::plan::partition::Partition;
 
 impl Partition {
     /// The cubes' cost (`cells`, x fastest) of the busiest row of nodes

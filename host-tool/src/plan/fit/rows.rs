@@ -1,8 +1,8 @@
 //! Rows of nodes along the driving axis: what each layer of cubes and each
 //! cut costs a row, and the exact cut of rows by dynamic programming.
 
-use crate::cost_map::CostMap;
-use crate::partition::Partition;
+use crate::plan::cost_map::CostMap;
+use crate::plan::partition::Partition;
 
 use super::floor;
 

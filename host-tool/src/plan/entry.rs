@@ -14,8 +14,8 @@ use link_proto::CameraMsg;
 use node_fw::camera::primary_line;
 use node_fw::{DigitalLine, Grid};
 
-use crate::camera::PixelBasis;
-use crate::partition::{Partition, tiles};
+use crate::plan::camera::PixelBasis;
+use crate::plan::partition::{Partition, tiles};
 
 /// A tile `[x0, y0, x1, y1)` per node for a `size` image: the nodes whose
 /// coordinate along `view_axis` is on the eye's side get the pixels whose

@@ -1,0 +1,147 @@
+//! The session: one frame's conversation with the nodes over a
+//! [`Transport`]: broadcast the scene and each node's share of the plan, run
+//! until every ray is accounted for, then collect the nodes' final loads.
+//!
+//! The conversation is the same whatever carries it: the in-memory board
+//! ([`sim`]), emulated boards under QEMU ([`qemu`]), or real boards over
+//! serial devices ([`serial`]); [`backend`] picks one.
+
+pub mod backend;
+pub mod boards;
+pub mod cabling;
+pub mod clock;
+pub mod frame;
+pub mod links;
+mod progress;
+pub mod qemu;
+pub mod relay;
+pub mod serial;
+pub mod sim;
+pub mod transport;
+
+use std::time::Instant;
+
+use link_proto::{ErrorCode, Message, RenderStart, SceneEnd};
+use node_fw::Port;
+
+use crate::error::HostError;
+use crate::plan::Plan;
+use crate::results::RenderResult;
+use crate::scene::Scene;
+use frame::FrameBuffer;
+use progress::Tracked;
+use transport::Transport;
+
+/// Credit of one initial ray: children split it, so it must survive
+/// `(lights + 2)^max_depth` divisions (at most 10^8 < 2^32). The wire knows
+/// it too: a ray with exactly this credit carries none.
+pub use link_proto::ray_wire::PIXEL_CREDIT;
+
+/// Runs one planned frame on `transport`: broadcast, render, collect.
+pub fn run<T: Transport>(
+    transport: &mut T,
+    scene: &Scene,
+    plan: &Plan,
+) -> Result<RenderResult<T::Time>, HostError> {
+    let [w, h] = plan.options.size;
+    let started = Instant::now();
+    let mut frame = FrameBuffer::new(w, h, transport.nodes(), PIXEL_CREDIT);
+    broadcast(transport, scene, plan);
+
+    let mut tracked = Tracked::new(&mut frame);
+    let run = transport.run(&mut tracked);
+    tracked.done();
+    // A node's own report (or restart) explains a failed run better than the stall it causes.
+    node_errors(&frame, plan)?;
+    let stats = run.map_err(|e| e.context("render failed"))?;
+
+    frame.finishing = true;
+    for id in 0..transport.nodes() {
+        transport.send(id, Message::Finish(link_proto::Finish { frame: 0 }));
+    }
+    transport.run(&mut frame).map_err(|e| e.context("collecting loads failed"))?;
+    node_errors(&frame, plan)?;
+    let nodes = 0..transport.nodes();
+    Ok(RenderResult {
+        frame,
+        partition: plan.partition.clone(),
+        stats,
+        bytes: nodes.clone().map(|i| transport.bytes_sent(i)).collect(),
+        bytes_in: nodes.clone().map(|i| transport.bytes_received(i)).collect(),
+        busy: nodes.map(|i| transport.busy(i)).collect(),
+        wall: started.elapsed(),
+        links: transport.link_stats(),
+    })
+}
+
+/// Sends the scene, its assignment and the render start to every node.
+fn broadcast(transport: &mut impl Transport, scene: &Scene, plan: &Plan) {
+    let opts = &plan.options;
+    let camera = plan.camera();
+    let spheres = scene.sphere_msgs();
+    let lights = scene.light_msgs();
+    for (id, tile) in plan.tiles.iter().enumerate() {
+        transport.send(id, Message::SceneBegin(scene.header()));
+        transport.send(id, Message::Assign(plan.assign(id)));
+        for s in &spheres {
+            transport.send(id, Message::Sphere(*s));
+        }
+        for l in &lights {
+            transport.send(id, Message::Light(*l));
+        }
+        let end = SceneEnd { spheres: spheres.len() as u32, lights: lights.len() as u8 };
+        transport.send(id, Message::SceneEnd(end));
+        transport.send(
+            id,
+            Message::RenderStart(RenderStart {
+                frame: 0,
+                size: opts.size,
+                camera,
+                initial: opts.initial.wire(),
+                tile: *tile,
+                credit: PIXEL_CREDIT,
+                level_depth: opts.level_depth,
+                shared_slots: opts.shared_slots,
+                balance: opts.balance,
+            }),
+        );
+    }
+}
+
+/// The first node error as a one-line host error.
+fn node_errors<T>(frame: &FrameBuffer<T>, plan: &Plan) -> Result<(), HostError> {
+    if let Some(&(node, version)) = frame.version_mismatch.first() {
+        return Err(HostError::Version(format!(
+            "node {node} speaks protocol version {version}, the host {}",
+            link_proto::PROTOCOL_VERSION
+        )));
+    }
+    let restarted = |node: u16, how: String| {
+        let c = plan.partition.coord(usize::from(node));
+        HostError::Node(format!(
+            "node {node} ({},{},{}) restarted mid-render ({how}); no image written",
+            c[0], c[1], c[2]
+        ))
+    };
+    if let Some(&node) = frame.restarted.first() {
+        return Err(restarted(node, "it said hello again".into()));
+    }
+    let Some(e) = frame.errors.first() else { return Ok(()) };
+    let port = Port::ALL.get(e.a as usize).copied().unwrap_or(Port::Host);
+    if e.code == ErrorCode::PeerRestarted
+        && let Some(peer) = node_fw::wiring::neighbour_of(usize::from(e.node), port, plan.partition.array)
+    {
+        return Err(restarted(peer, format!("its neighbour node {} saw it start again", e.node)));
+    }
+    let c = plan.partition.coord(usize::from(e.node));
+    let what = match (e.code, link_proto::Found::from_wire(e.b)) {
+        (ErrorCode::Unexpected, Some(link_proto::Found::Message(kind))) => {
+            format!("an unexpected {kind:?} message on port {}", crate::session::cabling::port_name(port))
+        }
+        (ErrorCode::Unexpected | ErrorCode::BadRay, Some(link_proto::Found::Site(site))) => {
+            format!("{:?} at {site:?} (a = {})", e.code, e.a)
+        }
+        _ => format!("{:?} (a = {}, b = {})", e.code, e.a, e.b),
+    };
+    Err(HostError::Node(format!("node {} ({},{},{}) reported {what}", e.node, c[0], c[1], c[2])))
+}
