@@ -95,12 +95,7 @@ impl LinkArgs {
                 TransferChoice::Dma => sim_board::Transfer::Dma,
             }),
         };
-        let (link, host) = choice.specs()?;
-        opts.sim.link = link;
-        opts.sim.host_link = host;
-        opts.sim.cost.pass = choice.preset.loop_pass();
-        opts.link_preset = choice.preset;
-        Ok(())
+        choice.apply(opts)
     }
 }
 

@@ -191,7 +191,7 @@ struct RenderArgs {
     #[arg(long, value_enum, default_value = "slide")]
     balance: BalanceMode,
     /// Virtual cycles between load comparisons (sliding).
-    #[arg(long, value_name = "CYCLES", default_value_t = 5_000_000)]
+    #[arg(long, value_name = "CYCLES", default_value_t = host_tool::plan::options::DEFAULT_INTERVAL)]
     interval: u64,
     /// A node whose load (running/waiting) is under this may take a slab (sliding).
     #[arg(long, value_name = "LOAD", default_value_t = 1.0)]

@@ -1,10 +1,12 @@
 //! Experiments and test oracles of the sliding-boundary ray tracer, apart
 //! from the product: the paper's experiments ([`paper`]), efficiency against
-//! array size ([`scaling`]), and the arithmetic's references and reports
+//! array size ([`scaling`]), the generated tables of docs/results.md
+//! ([`results`]), and the arithmetic's references and reports
 //! ([`numerics`]: an exact rational traversal and a big-integer sphere test
 //! that the tests hold the kernels to, the stiff cases, and error against run
 //! time of arithmetic variants).
 
 pub mod numerics;
 pub mod paper;
+pub mod results;
 pub mod scaling;

@@ -32,6 +32,19 @@ enum Command {
     /// Reports on the arithmetic.
     #[command(subcommand)]
     Report(ReportCommand),
+    /// The tables of docs/results.md, made anew (about a minute).
+    Results(ResultsArgs),
+}
+
+#[derive(Args)]
+struct ResultsArgs {
+    /// Where the document goes.
+    #[arg(long, value_name = "FILE.md", default_value = "docs/results.md")]
+    out: PathBuf,
+    /// Compare with the document instead of writing it; exit 5 naming each
+    /// table that is no longer what the code makes.
+    #[arg(long)]
+    check: bool,
 }
 
 #[derive(Subcommand)]
@@ -125,6 +138,7 @@ fn main() -> ExitCode {
             .and_then(|()| if pass { Ok(()) } else { Err(HostError::Node("a stiff case failed".into())) })
         }
         Command::Bench(BenchCommand::Scaling(args)) => bench_scaling(args),
+        Command::Results(args) => return results(&args),
         Command::Bench(BenchCommand::Paper(args)) => {
             let cfg =
                 if args.quick { lab::paper::PaperConfig::quick() } else { lab::paper::PaperConfig::full() };
@@ -138,6 +152,44 @@ fn main() -> ExitCode {
             eprintln!("error: {e}");
             ExitCode::from(e.exit_code() as u8)
         }
+    }
+}
+
+/// Writes docs/results.md, or checks it with `--check` (exit 5 when stale).
+fn results(args: &ResultsArgs) -> ExitCode {
+    let fail = |e: HostError| {
+        eprintln!("error: {e}");
+        ExitCode::from(e.exit_code() as u8)
+    };
+    let tables = match lab::results::tables() {
+        Ok(t) => t,
+        Err(e) => return fail(e),
+    };
+    if args.check {
+        let doc = match std::fs::read_to_string(&args.out) {
+            Ok(d) => d,
+            Err(e) => return fail(HostError::Io(format!("cannot read {}: {e}", args.out.display()))),
+        };
+        let stale = lab::results::stale(&doc, &tables);
+        if stale.is_empty() {
+            return ExitCode::SUCCESS;
+        }
+        eprintln!(
+            "error: {}: {} no longer what the code makes; run `cargo run --release -p lab -- results`",
+            args.out.display(),
+            stale.join(", ")
+        );
+        return ExitCode::from(5);
+    }
+    let commit = std::process::Command::new("git")
+        .args(["rev-parse", "--short", "HEAD"])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map_or_else(|| "unknown".to_string(), |o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    match write_atomic(&args.out, lab::results::document(&commit, &tables).as_bytes()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => fail(e),
     }
 }
 

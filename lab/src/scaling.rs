@@ -81,6 +81,19 @@ pub fn bench_scaling(scene: &Scene, cfg: &ScalingConfig, out: &Path) -> Result<S
         .map_err(|e| HostError::Io(format!("cannot create {}: {e}", out.display())))?;
     let files = ["scaling.csv", "scaling.md", "scaling.png"].map(|f| out.join(f));
     host_tool::results::output::check_writable(&files.iter().map(|p| p.as_path()).collect::<Vec<_>>())?;
+    let rows = rows(scene, cfg)?;
+    let table = markdown(cfg, &rows);
+    let plot = chart(cfg, &rows)?;
+    let [csv_path, md_path, png_path] = &files;
+    write_all_atomic(&[(csv_path, csv(&rows).as_bytes()), (md_path, table.as_bytes()), (png_path, &plot)])?;
+    Ok(table)
+}
+
+/// Renders every configuration of `cfg`, one node first.
+pub fn rows(scene: &Scene, cfg: &ScalingConfig) -> Result<Vec<ScalingRow>, HostError> {
+    if cfg.sides.first() != Some(&1) {
+        return Err(host_tool::error::input("bench scaling needs the one-node run first (side 1)"));
+    }
     let mut rows: Vec<ScalingRow> = Vec::new();
     let mut one: Option<(u64, u64)> = None;
     for &side in &cfg.sides {
@@ -100,11 +113,7 @@ pub fn bench_scaling(scene: &Scene, cfg: &ScalingConfig, out: &Path) -> Result<S
             rows.push(row);
         }
     }
-    let table = markdown(cfg, &rows);
-    let plot = chart(cfg, &rows)?;
-    let [csv_path, md_path, png_path] = &files;
-    write_all_atomic(&[(csv_path, csv(&rows).as_bytes()), (md_path, table.as_bytes()), (png_path, &plot)])?;
-    Ok(table)
+    Ok(rows)
 }
 
 fn run(
@@ -165,7 +174,8 @@ fn csv(rows: &[ScalingRow]) -> String {
     s
 }
 
-fn markdown(cfg: &ScalingConfig, rows: &[ScalingRow]) -> String {
+/// The rows as a Markdown table, headed by the links and image they ran with.
+pub fn markdown(cfg: &ScalingConfig, rows: &[ScalingRow]) -> String {
     let o = &cfg.base;
     let mut s = format!(
         "Links: {} (neighbours {} baud, host {} baud, {} cycles a byte on the wire, {} of CPU); \

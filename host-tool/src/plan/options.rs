@@ -70,6 +70,18 @@ pub const PREVIEW_STRIDE: u16 = 2;
 pub const PROPORTIONAL: link_proto::SlidePolicy =
     link_proto::SlidePolicy::Proportional { gamma: 4 << 16, deadband: 9830 };
 
+/// `render`'s sliding interval, virtual cycles between load comparisons.
+pub const DEFAULT_INTERVAL: u64 = 5_000_000;
+
+/// `render`'s threshold: a node whose load (running / waiting) is under it
+/// may take a slab. 16.16 fixed point.
+pub const DEFAULT_THRESHOLD: u32 = 1 << 16;
+
+/// Sliding as `render` does by default: the proportional policy, every
+/// [`DEFAULT_INTERVAL`] cycles (docs/partition-and-sliding.md says why).
+pub const DEFAULT_BALANCE: Balance =
+    Balance { interval: DEFAULT_INTERVAL, threshold: DEFAULT_THRESHOLD, step: 1, policy: PROPORTIONAL };
+
 /// How to render.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RenderOptions {

@@ -51,6 +51,19 @@ impl LinkChoice {
     }
 }
 
+impl LinkChoice {
+    /// Sets `opts`' links, and the loop pass the preset's board pays, to
+    /// this choice.
+    pub fn apply(&self, opts: &mut crate::plan::options::RenderOptions) -> Result<(), HostError> {
+        let (link, host) = self.specs()?;
+        opts.sim.link = link;
+        opts.sim.host_link = host;
+        opts.sim.cost.pass = self.preset.loop_pass();
+        opts.link_preset = self.preset;
+        Ok(())
+    }
+}
+
 /// A link as the summary describes it.
 pub fn spec_json(spec: &LinkSpec) -> Value {
     let model = spec.model();
