@@ -9,7 +9,7 @@
 use std::fmt::Write as _;
 
 use host_tool::error::HostError;
-use host_tool::plan::options::{DEFAULT_BALANCE, Layout, RenderOptions};
+use host_tool::plan::options::{DEFAULT_BALANCE, Initial, Layout, RenderOptions};
 use host_tool::scene::Scene;
 use host_tool::session::links::LinkChoice;
 use host_tool::session::sim::render_sim;
@@ -33,7 +33,7 @@ pub struct Table {
 
 /// Every table of docs/results.md, rendered now (about a minute in release).
 pub fn tables() -> Result<Vec<Table>, HostError> {
-    Ok(vec![defaults()?, scaling(LinkPreset::Ideal)?, scaling(LinkPreset::F413)?])
+    Ok(vec![defaults()?, initial_rays()?, scaling(LinkPreset::Ideal)?, scaling(LinkPreset::F413)?])
 }
 
 /// The document: a stamp, then each table under its heading.
@@ -119,6 +119,41 @@ fn defaults() -> Result<Table, HostError> {
                 `--policy paper` (the paper's rule, one cube a step); `even, static` is `--balance \
                 static`; `preview, proportional` is `--layout preview --driving-axis view`. Links: \
                 `f413` (the default: the real boards' USARTs) and `ideal`.",
+        body,
+    })
+}
+
+/// Initial rays created where they enter against the paper's parallel mode.
+fn initial_rays() -> Result<Table, HostError> {
+    let scene = paper_scene(1986)?;
+    let mut one = options([1; 3], LinkPreset::F413)?;
+    one.size = [128, 128];
+    let t1 = render_sim(&scene, &one)?.frame.makespan.0 as f64;
+    let mut body = String::from(
+        "| array | `parallel` (cycles) | `entry` (cycles) | E `parallel` | E `entry` |\n|---|---|---|---|---|\n",
+    );
+    for side in [2u16, 4, 8] {
+        let nodes = f64::from(side).powi(3);
+        let _ = write!(body, "| {side}x{side}x{side} |");
+        let mut e = Vec::new();
+        for initial in [Initial::Parallel, Initial::Entry] {
+            let opts = RenderOptions { array: [side; 3], initial, ..one };
+            let t = render_sim(&scene, &opts)?.frame.makespan.0 as f64;
+            let _ = write!(body, " {t:.3e} |");
+            e.push(t1 / (nodes * t));
+        }
+        for e in e {
+            let _ = write!(body, " {e:.3} |");
+        }
+        body.push('\n');
+    }
+    let _ = write!(body, "\nT(1) = {t1:.3e} cycles.\n");
+    Ok(Table {
+        name: "initial-rays",
+        title: "Initial rays where they enter, against the paper's parallel mode",
+        about: "Makespan in virtual cycles on the in-memory board, 1000 random spheres (seed 1986) in \
+                a 32^3 grid at 128x128, even static partitions, `f413` links; E = T(1) / (S T(S)) \
+                with T(1) the one-node run of the same frame.",
         body,
     })
 }
