@@ -8,8 +8,8 @@ use std::cell::Cell;
 use glam::{DVec3, Vec3};
 
 use crate::plan::camera::PixelBasis;
+use crate::results::image::to_srgb8;
 use crate::scene::{Scene, SphereDesc};
-use crate::session::frame::to_srgb8;
 
 /// A pixel's first hit in the reference.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,12 +39,29 @@ pub struct RefImage {
 impl RefImage {
     /// 8-bit sRGB, through the same mapping as the array's frame buffer.
     pub fn rgb8(&self) -> Vec<u8> {
-        self.color
-            .iter()
-            .flat_map(|c| c.to_array().map(|v| to_srgb8((v * 32768.0).max(0.0).round() as u64)))
-            .collect()
+        rgb8_of(&self.color)
     }
 }
+
+/// Linear colours as 8-bit sRGB, through the same mapping as the array's
+/// frame buffer.
+pub fn rgb8_of(colors: &[DVec3]) -> Vec<u8> {
+    colors
+        .iter()
+        .flat_map(|c| c.to_array().map(|v| to_srgb8((v * 32768.0).max(0.0).round() as u64)))
+        .collect()
+}
+
+/// The reference image of `scene` at `size` with `side` x `side` samples a
+/// pixel on the array's regular grid, as linear colours (each pixel the mean
+/// of its samples).
+pub fn render_sampled(scene: &Scene, size: [u16; 2], side: u16) -> Vec<DVec3> {
+    let [w, h] = size.map(|n| n * side);
+    let img = render(scene, w, h);
+    crate::results::image::block_means(&img.color, w, h, side)
+}
+
+impl RefImage {}
 
 /// The renderer for one float type (`$v` a glam vector of `$f`).
 macro_rules! renderer {

@@ -4,9 +4,9 @@
 use host_tool::compare::compare;
 use host_tool::plan::options::{Initial, Layout, RenderOptions};
 use host_tool::plan::{check_frame, initial_partition};
+use host_tool::results::image::{to_srgb8, to_srgb8_mean};
 use host_tool::scene::{Light, Scene, SphereDesc};
 use host_tool::session::clock::Cycles;
-use host_tool::session::frame::to_srgb8;
 use host_tool::session::sim::{render_partitioned, render_sim};
 use host_tool::session::transport::Transport;
 use host_tool::{plan::direct, reference};
@@ -463,4 +463,66 @@ fn a_node_names_the_check_that_failed() {
         let e = frame.errors.first().expect("the node reported an error");
         assert_eq!((e.code, Found::from_wire(e.b)), (want.0, Some(want.1)));
     }
+}
+
+/// The mean absolute difference of two 8-bit images.
+fn mean_abs(a: &[u8], b: &[u8]) -> f64 {
+    a.iter().zip(b).map(|(&x, &y)| f64::from(x.abs_diff(y))).sum::<f64>() / a.len().max(1) as f64
+}
+
+#[test]
+fn supersampled_images_are_bit_identical_across_arrays_and_balancing() {
+    let s = scene(0.6, 3);
+    let size = [20u16, 16u16];
+    // Four samples a pixel: the nodes trace a 40x32 grid of samples.
+    let want = direct::render(&s, 40, 32).unwrap();
+    // Each pixel is the mean of its 2x2 block of samples, summed here.
+    let mut blocks = vec![[0u64; 3]; 20 * 16];
+    for (i, px) in want.sums.iter().enumerate() {
+        let (x, y) = (i % 40, i / 40);
+        for c in 0..3 {
+            blocks[(y / 2) * 20 + x / 2][c] += px[c];
+        }
+    }
+    let image: Vec<u8> = blocks.iter().flat_map(|p| p.map(|v| to_srgb8_mean(v, 4))).collect();
+    let slide = link_proto::Balance {
+        interval: 200_000,
+        threshold: 1 << 16,
+        step: 1,
+        policy: host_tool::plan::options::PROPORTIONAL,
+    };
+    for array in [[1, 1, 1], [2, 2, 2], [3, 2, 1], [4, 4, 4]] {
+        for balance in [None, Some(slide), Some(paper_slide(200_000, 1 << 16))] {
+            let mut opts = RenderOptions::new(array);
+            opts.size = size;
+            opts.samples = 4;
+            opts.balance = balance;
+            let r = render_sim(&s, &opts).unwrap_or_else(|e| panic!("{array:?} {balance:?}: {e}"));
+            assert_eq!(r.frame.rays_created, r.frame.rays_terminated, "{array:?}: rays lost");
+            assert!(r.frame.sums == want.sums, "{array:?} {balance:?}: samples differ from the single loop");
+            assert_eq!(r.frame.image_size(), size);
+            assert!(r.frame.rgb8() == image, "{array:?} {balance:?}: image differs");
+        }
+    }
+    // More samples bring the image nearer a finely sampled f64 reference.
+    let reference = reference::rgb8_of(&reference::render_sampled(&s, size, 4));
+    let one = direct::render(&s, size[0], size[1]).unwrap();
+    let one: Vec<u8> = one.sums.iter().flat_map(|p| p.map(to_srgb8)).collect();
+    let (e1, e4) = (mean_abs(&one, &reference), mean_abs(&image, &reference));
+    assert!(e4 < 0.8 * e1, "4 samples: mean error {e4:.3} levels, 1 sample: {e1:.3}");
+}
+
+#[test]
+fn samples_that_are_no_square_or_too_many_are_refused_before_anything_runs() {
+    let s = scene(0.6, 3);
+    let mut opts = RenderOptions::new([2, 2, 2]);
+    opts.samples = 3;
+    let e = render_sim(&s, &opts).expect_err("3 is no square");
+    assert_eq!(e.exit_code(), 17, "{e}");
+    assert!(e.to_string().contains("--samples"), "{e}");
+    // 8192x8192 pixels at 64 samples would be 2^32 samples.
+    opts.samples = 64;
+    opts.size = [8192, 8192];
+    let e = render_sim(&s, &opts).expect_err("too many samples");
+    assert_eq!(e.exit_code(), 14, "{e}");
 }

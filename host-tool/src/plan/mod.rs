@@ -34,8 +34,12 @@ pub struct Plan {
     pub view_axis: u8,
     /// The camera's pixel directions.
     pub basis: PixelBasis,
-    /// Each node's sub-image of initial rays (empty for none).
+    /// Each node's sub-image of initial rays (empty for none), in samples.
     pub tiles: Vec<[u16; 4]>,
+    /// The image the nodes trace, in samples ([`RenderOptions::trace_size`]).
+    pub trace_size: [u16; 2],
+    /// Samples per pixel along each axis.
+    pub sample_side: u16,
 }
 
 impl Plan {
@@ -54,20 +58,22 @@ impl Plan {
         capacity: Capacity,
     ) -> Result<Self, HostError> {
         check_frame(scene, options, &partition, capacity)?;
-        let [w, h] = options.size;
+        let trace_size = trace_size(options)?;
+        let [w, h] = trace_size;
         let basis = PixelBasis::new(&scene.camera(), w, h);
         let view_axis = view_axis(scene);
         let tiles = match options.initial {
             Initial::Parallel => tiles(w, h, partition.len()),
             Initial::Entry => {
-                entry::entry_tiles(&basis, scene.grid, &partition, usize::from(view_axis), options.size)
+                entry::entry_tiles(&basis, scene.grid, &partition, usize::from(view_axis), trace_size)
             }
             Initial::EyeNode => {
                 let eye = partition.owner_of(scene.camera().eye, scene.grid);
                 (0..partition.len()).map(|i| if i == eye { [0, 0, w, h] } else { [0; 4] }).collect()
             }
         };
-        Ok(Self { options: *options, partition, view_axis, basis, tiles })
+        let sample_side = crate::results::image::sample_side(options.samples)?;
+        Ok(Self { options: *options, partition, view_axis, basis, tiles, trace_size, sample_side })
     }
 
     /// Number of nodes.
@@ -93,7 +99,7 @@ pub fn initial_partition(
     opts: &RenderOptions,
     capacity: Capacity,
 ) -> Result<Partition, HostError> {
-    crate::session::frame::check_size(opts.size[0], opts.size[1])?;
+    let traced = trace_size(opts)?;
     let axis = match opts.driving_axis {
         Some(a) if a > 2 => return Err(input(format!("driving axis {a} must be 0, 1 or 2"))),
         Some(a) => a,
@@ -106,7 +112,7 @@ pub fn initial_partition(
             Partition::even(scene.grid, opts.array, axis)?;
             // And the pool, before the preview takes its time.
             check_pool(scene, opts, axis, Boundaries::Whole, capacity)?;
-            let [w, h] = opts.size.map(|n| n.div_ceil(PREVIEW_STRIDE).max(1));
+            let [w, h] = traced.map(|n| n.div_ceil(PREVIEW_STRIDE).max(1));
             // Entry tiles create each ray on its entry cube's node: that is
             // work of the cube. Other modes spread creation by tiles.
             let creation = opts.initial == Initial::Entry;
@@ -130,10 +136,24 @@ pub fn check_frame(
     partition: &Partition,
     capacity: Capacity,
 ) -> Result<(), HostError> {
-    let [w, h] = opts.size;
-    crate::session::frame::check_size(w, h)?;
+    trace_size(opts)?;
     partition.check_capacity(scene, capacity)?;
     check_pool(scene, opts, partition.driving_axis, partition.boundaries(), capacity)
+}
+
+/// The image size checked, then the size the nodes trace with its samples.
+fn trace_size(opts: &RenderOptions) -> Result<[u16; 2], HostError> {
+    let [w, h] = opts.size;
+    crate::session::frame::check_size(w, h)?;
+    let [tw, th] = opts.trace_size()?;
+    crate::session::frame::check_size(tw, th).map_err(|e| {
+        if opts.samples > 1 {
+            e.context(&format!("at --samples {} the nodes trace {tw}x{th} samples", opts.samples))
+        } else {
+            e
+        }
+    })?;
+    Ok([tw, th])
 }
 
 /// Checks that a node's ray pool can take the class levels and slots a frame

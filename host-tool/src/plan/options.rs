@@ -4,6 +4,8 @@
 use link_proto::{Balance, InitialRays};
 use sim_board::{LinkPreset, SimConfig};
 
+use crate::error::HostError;
+
 /// Who creates the initial rays: a sub-image per node, chosen by the host.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Initial {
@@ -89,6 +91,9 @@ pub struct RenderOptions {
     pub array: [u16; 3],
     /// Image width and height.
     pub size: [u16; 2],
+    /// Samples per pixel, on a regular grid: a square from 1 to 64
+    /// ([`crate::results::image::sample_side`]).
+    pub samples: u16,
     /// Who creates the initial rays.
     pub initial: Initial,
     /// Ray pool slots kept for each class level.
@@ -116,6 +121,7 @@ impl RenderOptions {
         Self {
             array,
             size: [256, 256],
+            samples: 1,
             initial: Initial::Entry,
             level_depth: 1,
             shared_slots: None,
@@ -125,5 +131,11 @@ impl RenderOptions {
             driving_axis: None,
             layout: Layout::Even,
         }
+    }
+
+    /// The image the nodes trace: `size` times the samples per axis, each
+    /// pixel of the image the mean of a block of it.
+    pub fn trace_size(&self) -> Result<[u16; 2], HostError> {
+        crate::results::image::traced(self.size, self.samples)
     }
 }

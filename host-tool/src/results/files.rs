@@ -121,6 +121,7 @@ pub fn summary_json<T: Clock>(
         "array": opts.array,
         "grid": scene.grid,
         "size": opts.size,
+        "samples": opts.samples,
         "spheres": scene.spheres.len(),
         "lights": scene.lights.len(),
         "initial_rays": opts.initial.name(),

@@ -1,9 +1,10 @@
 //! The results of a run: the frame the session collected, and everything
-//! written from it (the image, the summary, the per-node loads, the load and
+//! written from it (the image, each pixel the mean of its samples; the summary, the per-node loads, the load and
 //! boundary histories and their plot), each file complete or absent.
 
 pub mod files;
 pub mod history;
+pub mod image;
 pub mod output;
 pub mod plot;
 

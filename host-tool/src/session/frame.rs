@@ -40,11 +40,13 @@ pub struct SlideSeen<T> {
 /// Everything the host collects during a frame.
 #[derive(Debug, Clone)]
 pub struct FrameBuffer<T> {
-    /// Image width.
+    /// Width in samples (the image's width times the samples per axis).
     pub width: u16,
-    /// Image height.
+    /// Height in samples.
     pub height: u16,
-    /// Per pixel and channel, sum of Q1.15 contributions.
+    /// Samples per pixel along each axis.
+    side: u16,
+    /// Per sample and channel, sum of Q1.15 contributions.
     pub sums: Vec<[u64; 3]>,
     /// Credit expected back (one initial credit per pixel).
     pub credit_total: u128,
@@ -83,6 +85,7 @@ impl<T: Clock> FrameBuffer<T> {
         Self {
             width,
             height,
+            side: 1,
             sums: vec![[0; 3]; pixels],
             credit_total: pixels as u128 * u128::from(credit),
             credit_back: 0,
@@ -118,18 +121,28 @@ impl<T: Clock> FrameBuffer<T> {
         self.makespan = self.makespan.max(at);
     }
 
-    /// The image as 8-bit sRGB.
+    /// The same frame with `side` x `side` samples a pixel.
+    pub fn sampled(self, side: u16) -> Self {
+        Self { side: side.max(1), ..self }
+    }
+
+    /// Samples per pixel along each axis.
+    pub fn side(&self) -> u16 {
+        self.side
+    }
+
+    /// The image's width and height in pixels.
+    pub fn image_size(&self) -> [u16; 2] {
+        [self.width / self.side, self.height / self.side]
+    }
+
+    /// The image as 8-bit sRGB: each pixel the mean of its samples.
     pub fn rgb8(&self) -> Vec<u8> {
-        self.sums.iter().flat_map(|px| px.map(to_srgb8)).collect()
+        crate::results::image::srgb8(&self.sums, self.width, self.height, self.side)
     }
 }
 
-/// Linear Q1.15 sum to an 8-bit sRGB value (same integer in, same byte out).
-pub fn to_srgb8(sum: u64) -> u8 {
-    let linear = (sum as f64 / 32768.0).clamp(0.0, 1.0);
-    let s = if linear <= 0.003_130_8 { 12.92 * linear } else { 1.055 * linear.powf(1.0 / 2.4) - 0.055 };
-    (s * 255.0).round() as u8
-}
+pub use crate::results::image::to_srgb8;
 
 impl<T: Clock> Endpoint<T> for FrameBuffer<T> {
     fn receive(&mut self, node: u16, at: T, msg: Message) {

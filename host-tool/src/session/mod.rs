@@ -43,9 +43,9 @@ pub fn run<T: Transport>(
     scene: &Scene,
     plan: &Plan,
 ) -> Result<RenderResult<T::Time>, HostError> {
-    let [w, h] = plan.options.size;
+    let [w, h] = plan.trace_size;
     let started = Instant::now();
-    let mut frame = FrameBuffer::new(w, h, transport.nodes(), PIXEL_CREDIT);
+    let mut frame = FrameBuffer::new(w, h, transport.nodes(), PIXEL_CREDIT).sampled(plan.sample_side);
     broadcast(transport, scene, plan);
 
     let mut tracked = Tracked::new(&mut frame);
@@ -95,7 +95,7 @@ fn broadcast(transport: &mut impl Transport, scene: &Scene, plan: &Plan) {
             id,
             Message::RenderStart(RenderStart {
                 frame: 0,
-                size: opts.size,
+                size: plan.trace_size,
                 camera,
                 initial: opts.initial.wire(),
                 tile: *tile,
