@@ -40,6 +40,10 @@ pub struct SceneArgs {
     /// Image size.
     #[arg(long, value_name = "WxH", value_parser = parse_pair, default_value = "256x256")]
     pub size: [u16; 2],
+    /// Samples per pixel on a regular grid, a square (1, 4, 9, ..., 64): each
+    /// pixel is the mean of that many rays (antialiasing, at that many times the work).
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub samples: u16,
 }
 
 /// The links of the in-memory board: a preset, and settings that override it.
@@ -159,8 +163,20 @@ pub fn scene_source(args: &SceneArgs, scene: &Scene) -> serde_json::Value {
 
 /// The scene the options describe: a file, a random scene, or the built-in demo.
 pub fn load_scene(args: &SceneArgs) -> Result<Scene, HostError> {
+    load_scene_for(args, [1; 3])
+}
+
+/// The scene the options describe, for an array: a grid chosen from the
+/// scene gives each node at least [`crate::scene::fit::CUBES_PER_NODE`]
+/// cubes along each axis.
+pub fn load_scene_for(args: &SceneArgs, array: [u16; 3]) -> Result<Scene, HostError> {
     if let Some(path) = &args.scene {
-        let how = Reading { fit: args.fit, grid: args.grid, skip_unsupported: args.skip_unsupported };
+        let how = Reading {
+            fit: args.fit,
+            grid: args.grid,
+            at_least: crate::scene::fit::at_least_for(array),
+            skip_unsupported: args.skip_unsupported,
+        };
         let (scene, warnings) = Scene::read(path, &how)?;
         for warning in warnings {
             eprintln!("warning: {warning}");

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use host_tool::args::{
-    LinkArgs, SceneArgs, load_scene, node_timeout, parse_triple, scene_source, usage_error,
+    LinkArgs, SceneArgs, load_scene, load_scene_for, node_timeout, parse_triple, scene_source, usage_error,
 };
 use host_tool::compare::compare;
 use host_tool::error::{HostError, input};
@@ -310,9 +310,10 @@ fn boards(args: BoardsArgs) -> Result<(), HostError> {
 }
 
 fn render(args: RenderArgs) -> Result<(), HostError> {
-    let scene = load_scene(&args.scene)?;
+    let scene = load_scene_for(&args.scene, args.array)?;
     let mut opts = RenderOptions::new(args.array);
     opts.size = args.scene.size;
+    opts.samples = args.scene.samples;
     opts.level_depth = args.queue_depth;
     opts.shared_slots = args.shared_slots;
     opts.initial = match args.initial_rays {
@@ -428,7 +429,8 @@ fn write_run<T: Clock>(
     files: &RunFiles,
 ) -> Result<(), HostError> {
     let f = &result.frame;
-    let image = png(f.width, f.height, &f.rgb8())?;
+    let [w, h] = f.image_size();
+    let image = png(w, h, &f.rgb8())?;
     let summary = summary_json(scene, opts, result, from);
     let loads = loads_csv(result);
     let history = load_history_csv(result);
@@ -444,8 +446,8 @@ fn write_run<T: Clock>(
     ])?;
     eprintln!(
         "rendered {}x{} on {}x{}x{} nodes: makespan {}, imbalance {:.3}, {} rays, {:.2} s -> {}",
-        f.width,
-        f.height,
+        w,
+        h,
         opts.array[0],
         opts.array[1],
         opts.array[2],
@@ -462,22 +464,28 @@ fn reference_cmd(args: ReferenceArgs) -> Result<(), HostError> {
     let scene = load_scene(&args.scene)?;
     let [w, h] = args.scene.size;
     host_tool::session::frame::check_size(w, h)?;
+    let [tw, th] = host_tool::results::image::traced(args.scene.size, args.scene.samples)?;
+    host_tool::session::frame::check_size(tw, th)?;
     check_png_name(&args.out)?;
-    let img = reference::render(&scene, w, h);
-    write_atomic(&args.out, &png(w, h, &img.rgb8())?)?;
+    let side = tw / w;
+    let colors = reference::render_sampled(&scene, args.scene.size, side);
+    write_atomic(&args.out, &png(w, h, &reference::rgb8_of(&colors))?)?;
     eprintln!("reference {w}x{h} -> {}", args.out.display());
     Ok(())
 }
 
+/// Compares at every sample: with `--samples`, at the positions the nodes trace.
 fn compare_cmd(args: SceneArgs) -> Result<(), HostError> {
     let scene = load_scene(&args)?;
-    let [w, h] = args.size;
+    host_tool::session::frame::check_size(args.size[0], args.size[1])?;
+    let size = host_tool::results::image::traced(args.size, args.samples)?;
+    let [w, h] = size;
     host_tool::session::frame::check_size(w, h)?;
     let fixed = direct::render(&scene, w, h)?;
     let fixed_rgb: Vec<u8> =
         fixed.sums.iter().flat_map(|px| px.map(host_tool::session::frame::to_srgb8)).collect();
     let refimg = reference::render(&scene, w, h);
-    let c = compare(&scene, args.size, &fixed, &fixed_rgb, &refimg, &refimg.rgb8());
+    let c = compare(&scene, size, &fixed, &fixed_rgb, &refimg, &refimg.rgb8());
     let text = serde_json::to_string_pretty(&c).map_err(|e| HostError::Io(e.to_string()))?;
     println!("{text}");
     Ok(())

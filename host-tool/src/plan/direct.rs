@@ -116,6 +116,21 @@ pub fn render_with_camera_bits(
     render_impl(scene, width, height, None, bits)
 }
 
+/// Renders `scene` with the camera's direction basis at `camera_bits`
+/// fraction bits (30 is the nodes' own) and measures what every cube costs
+/// (the initial rays' creation aside, as [`measure_costs`]).
+pub fn render_costed(
+    scene: &Scene,
+    width: u16,
+    height: u16,
+    camera_bits: u32,
+    cost: &sim_board::CostModel,
+) -> Result<(DirectImage, CostMap), HostError> {
+    let mut costs = Costs { model: *cost, map: CostMap::new(scene.grid) };
+    let img = render_impl(scene, width, height, Some(&mut costs), camera_bits)?;
+    Ok((img, costs.map))
+}
+
 /// Renders `scene` at `width` x `height` with the node kernels in one loop.
 pub fn render(scene: &Scene, width: u16, height: u16) -> Result<DirectImage, HostError> {
     render_impl(scene, width, height, None, 30)

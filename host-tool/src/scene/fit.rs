@@ -16,13 +16,21 @@ const MARGIN: f64 = 0.02;
 /// paper's own scene: 1000 spheres on 32^3, 33 cubes each).
 const CUBES_PER_SPHERE: f64 = 8.0;
 
+/// Cubes a node should hold along each axis at least when the grid is chosen
+/// for an array: fewer leave the partition fit and the sliding boundaries
+/// too coarse a step (`lab report tradeoff` measures it: docs/arithmetic.md).
+pub const CUBES_PER_NODE: u16 = 4;
+
 /// Scales and moves `scene` into `grid`, or into a grid chosen from the
 /// spheres' extent and number (at most `MAX_GRID` a side) when `grid` is
 /// `None`.
 pub fn fit(scene: &mut Scene, grid: Option<[u16; 3]>) -> Result<(), HostError> {
+    let grid = match grid {
+        Some(g) => g,
+        None => choose(scene, [1; 3])?,
+    };
     let (lo, hi) = bounds(scene).ok_or_else(|| input("the scene has no spheres to fit"))?;
     let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(f64::MIN_POSITIVE));
-    let grid = grid.unwrap_or_else(|| choose_grid(extent, scene.spheres.len()));
     if grid.iter().any(|&g| g == 0 || g > MAX_GRID) {
         return Err(input(format!("grid {grid:?} must be 1..={MAX_GRID} cubes per axis")));
     }
@@ -54,12 +62,31 @@ fn bounds(scene: &Scene) -> Option<([f64; 3], [f64; 3])> {
     }))
 }
 
-/// A grid of about [`CUBES_PER_SPHERE`] cubes per sphere, shaped like the
-/// spheres' bounding box.
-fn choose_grid(extent: [f64; 3], spheres: usize) -> [u16; 3] {
+/// The grid a scene is fitted into when none is given: about
+/// [`CUBES_PER_SPHERE`] cubes per sphere, shaped like the spheres' bounding
+/// box, and finer where that leaves fewer than `at_least` cubes along an axis.
+pub fn choose(scene: &Scene, at_least: [u16; 3]) -> Result<[u16; 3], HostError> {
+    let (lo, hi) = bounds(scene).ok_or_else(|| input("the scene has no spheres to fit"))?;
+    let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(f64::MIN_POSITIVE));
+    Ok(grid_for(extent, scene.spheres.len(), at_least))
+}
+
+/// [`choose`] for a bounding box of `extent` holding `spheres` spheres.
+fn grid_for(extent: [f64; 3], spheres: usize, at_least: [u16; 3]) -> [u16; 3] {
     let volume: f64 = extent.iter().product();
-    let per_length = (CUBES_PER_SPHERE * spheres as f64 / volume).cbrt();
-    extent.map(|e| (e * per_length).round().clamp(1.0, f64::from(MAX_GRID)) as u16)
+    let per_sphere = (CUBES_PER_SPHERE * spheres as f64 / volume).cbrt();
+    // The fit keeps the box's shape: its longest side relative to the grid's decides.
+    let per_node = (0..3).map(|a| f64::from(at_least[a]) / extent[a]).fold(0.0, f64::max);
+    let per_length = per_sphere.max(per_node);
+    std::array::from_fn(|a| {
+        let cubes = (extent[a] * per_length).round().max(f64::from(at_least[a]));
+        cubes.clamp(1.0, f64::from(MAX_GRID)) as u16
+    })
+}
+
+/// The least grid for an array: [`CUBES_PER_NODE`] cubes per node along each axis.
+pub fn at_least_for(array: [u16; 3]) -> [u16; 3] {
+    array.map(|n| n.saturating_mul(CUBES_PER_NODE))
 }
 
 #[cfg(test)]
@@ -102,9 +129,12 @@ mod tests {
     #[test]
     fn the_grid_chosen_follows_the_spheres_number_and_shape() {
         // 1000 spheres in a cube: 8 000 cubes, 20 a side.
-        assert_eq!(choose_grid([2.0; 3], 1000), [20, 20, 20]);
+        assert_eq!(grid_for([2.0; 3], 1000, [1; 3]), [20, 20, 20]);
         // A slab twice as wide as deep.
-        assert_eq!(choose_grid([4.0, 4.0, 2.0], 1000), [25, 25, 13]);
-        assert_eq!(choose_grid([1.0; 3], 10_000_000), [256, 256, 256]);
+        assert_eq!(grid_for([4.0, 4.0, 2.0], 1000, [1; 3]), [25, 25, 13]);
+        assert_eq!(grid_for([1.0; 3], 10_000_000, [1; 3]), [256, 256, 256]);
+        // For a 4x4x4 array every axis gets at least 16 cubes, the box's shape kept.
+        assert_eq!(grid_for([4.0, 4.0, 2.0], 10, at_least_for([4; 3])), [32, 32, 16]);
+        assert_eq!(grid_for([2.0; 3], 1000, at_least_for([8; 3])), [32, 32, 32]);
     }
 }

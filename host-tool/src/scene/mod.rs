@@ -150,6 +150,9 @@ pub struct Reading {
     pub fit: bool,
     /// The grid to fit into; chosen from the scene when `None`.
     pub grid: Option<[u16; 3]>,
+    /// Cubes along each axis a grid chosen from the scene has at least
+    /// ([`fit::at_least_for`] the array it is rendered on).
+    pub at_least: [u16; 3],
     /// Leave out NFF primitives that cannot be rendered, with a warning,
     /// instead of refusing the file.
     pub skip_unsupported: bool,
@@ -222,7 +225,11 @@ impl Scene {
             }
         };
         if fit_it {
-            fit(&mut scene, how.grid)?;
+            let grid = match how.grid {
+                Some(g) => g,
+                None => fit::choose(&scene, how.at_least)?,
+            };
+            fit(&mut scene, Some(grid))?;
         } else if let Some(grid) = how.grid.filter(|&g| g != scene.grid) {
             return Err(input(format!(
                 "{source} has its own grid {:?}; to render it in {grid:?}, add --fit",
