@@ -64,8 +64,8 @@ cargo run --release --locked -p lab -- bench paper --quick --out target/paper-qu
 step "efficiency and messaging share at S = 1, 8, 27 (lab bench scaling --quick)"
 cargo run --release --locked -p lab -- bench scaling --quick --out target/scaling-quick
 
-step "error against run time of the arithmetic variants, reduced (lab report numerics --quick)"
-cargo run --release --locked -p lab -- report numerics --quick --out target/numerics-quick
+step "error against run time over the settings, reduced (lab report tradeoff --quick)"
+cargo run --release --locked -p lab -- report tradeoff --quick --out target/tradeoff-quick
 
 step "tests"
 cargo test --workspace --locked

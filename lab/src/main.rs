@@ -8,10 +8,10 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use host_tool::args::{LinkArgs, SceneArgs, load_scene, parse_triple, usage_error};
 use host_tool::error::{HostError, input};
+use host_tool::plan::direct;
 use host_tool::plan::options::RenderOptions;
 use host_tool::results::output::write_atomic;
 use host_tool::session::sim::render_sim;
-use host_tool::{plan::direct, scene::Scene};
 
 #[derive(Parser)]
 #[command(
@@ -56,16 +56,33 @@ enum ReportCommand {
         #[arg(long, value_name = "FILE.md")]
         out: Option<PathBuf>,
     },
-    /// Error against run time of arithmetic variants (fixed point, f32) against
-    /// the f64 reference: CSV, Markdown table and a Pareto plot.
-    Numerics {
-        /// Output directory.
-        #[arg(long, value_name = "DIR", default_value = "numerics")]
-        out: PathBuf,
-        /// One small scene (for CI).
-        #[arg(long)]
-        quick: bool,
-    },
+    /// Error against run time on a scene (the demo without one) over the
+    /// settings a user can turn: samples per pixel, reflection depth, grid
+    /// resolution, arithmetic. CSV, Markdown table and a Pareto plot.
+    Tradeoff(TradeoffArgs),
+}
+
+#[derive(Args)]
+struct TradeoffArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Output directory.
+    #[arg(long, value_name = "DIR", default_value = "tradeoff")]
+    out: PathBuf,
+    /// A reduced sweep at 32x32 (for the test command).
+    #[arg(long)]
+    quick: bool,
+    /// Array the makespans are measured on (render's defaults otherwise).
+    #[arg(long, value_name = "XxYxZ", value_parser = parse_triple, default_value = "4x4x4")]
+    array: [u16; 3],
+    /// Also render the default setting on one emulated board (QEMU) and set
+    /// its instruction count beside the cost model's.
+    #[arg(long)]
+    spot_check: bool,
+    /// Instead of the scene options: the built-in sphereflake of this many
+    /// generations (mirrors everywhere; 2 gives 91 spheres).
+    #[arg(long, value_name = "LEVELS", conflicts_with_all = ["scene", "spheres"])]
+    sphereflake: Option<u32>,
 }
 
 #[derive(Subcommand)]
@@ -127,7 +144,7 @@ fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Bench(BenchCommand::Board(args)) => bench_board(args),
-        Command::Report(ReportCommand::Numerics { out, quick }) => numerics_report(&out, quick),
+        Command::Report(ReportCommand::Tradeoff(args)) => tradeoff_report(&args),
         Command::Report(ReportCommand::Stiff { out }) => {
             let (table, pass) = lab::numerics::stiff_table::markdown();
             print!("{table}");
@@ -263,18 +280,21 @@ fn bench_scaling(args: ScalingArgs) -> Result<(), HostError> {
     Ok(())
 }
 
-fn numerics_report(out: &std::path::Path, quick: bool) -> Result<(), HostError> {
-    let grid = [32; 3];
-    let mut scenes = vec![("demo".to_string(), Scene::random(400, 1986, 1.0, grid)?)];
-    let size = if quick {
-        [48, 48]
-    } else {
-        for seed in [1, 2] {
-            scenes.push((format!("1000 spheres, seed {seed}"), Scene::random(1000, seed, 1.0, grid)?));
-        }
-        [128, 128]
+fn tradeoff_report(args: &TradeoffArgs) -> Result<(), HostError> {
+    let scene = match args.sphereflake {
+        Some(levels) if levels > 3 => return Err(input("--sphereflake takes 0 to 3 generations")),
+        Some(levels) => lab::scenes::sphereflake(levels, args.array)?,
+        None => host_tool::args::load_scene_for(&args.scene, args.array)?,
     };
-    let md = lab::numerics::variants::report(&scenes, size, out)?;
+    let cfg = if args.quick {
+        lab::tradeoff::TradeoffConfig { array: args.array, ..lab::tradeoff::TradeoffConfig::quick() }
+    } else {
+        lab::tradeoff::TradeoffConfig {
+            array: args.array,
+            ..lab::tradeoff::TradeoffConfig::full(args.scene.size)
+        }
+    };
+    let md = lab::tradeoff::report(&scene, &cfg, &args.out, args.spot_check)?;
     print!("{md}");
     Ok(())
 }

@@ -33,7 +33,13 @@ pub struct Table {
 
 /// Every table of docs/results.md, rendered now (about a minute in release).
 pub fn tables() -> Result<Vec<Table>, HostError> {
-    Ok(vec![defaults()?, initial_rays()?, scaling(LinkPreset::Ideal)?, scaling(LinkPreset::F413)?])
+    Ok(vec![
+        defaults()?,
+        initial_rays()?,
+        scaling(LinkPreset::Ideal)?,
+        scaling(LinkPreset::F413)?,
+        tradeoff()?,
+    ])
 }
 
 /// The document: a stamp, then each table under its heading.
@@ -155,6 +161,21 @@ fn initial_rays() -> Result<Table, HostError> {
                 a 32^3 grid at 128x128, even static partitions, `f413` links; E = T(1) / (S T(S)) \
                 with T(1) the one-node run of the same frame.",
         body,
+    })
+}
+
+/// Error against run time on the sphereflake (`lab report tradeoff`).
+fn tradeoff() -> Result<Table, HostError> {
+    let cfg = crate::tradeoff::TradeoffConfig::full([48, 48]);
+    let scene = crate::scenes::sphereflake(2, cfg.array)?;
+    let points = crate::tradeoff::sweep(&scene, &cfg)?;
+    Ok(Table {
+        name: "tradeoff",
+        title: "Error against run time on the sphereflake",
+        about: "`lab report tradeoff --sphereflake 2 --size 48x48`: the built-in sphereflake (91 \
+                spheres, every surface a 45% mirror) fitted into the grid `render` chooses for 4x4x4. \
+                docs/arithmetic.md says what is measured and why the defaults sit where they do.",
+        body: crate::tradeoff::markdown(&points, &cfg),
     })
 }
 
