@@ -483,7 +483,7 @@ fn compare_cmd(args: SceneArgs) -> Result<(), HostError> {
     host_tool::session::frame::check_size(w, h)?;
     let fixed = direct::render(&scene, w, h)?;
     let fixed_rgb: Vec<u8> =
-        fixed.sums.iter().flat_map(|px| px.map(host_tool::session::frame::to_srgb8)).collect();
+        fixed.sums.iter().flat_map(|px| px.map(host_tool::results::image::to_srgb8)).collect();
     let refimg = reference::render(&scene, w, h);
     let c = compare(&scene, size, &fixed, &fixed_rgb, &refimg, &refimg.rgb8());
     let text = serde_json::to_string_pretty(&c).map_err(|e| HostError::Io(e.to_string()))?;

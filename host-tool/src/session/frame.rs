@@ -142,8 +142,6 @@ impl<T: Clock> FrameBuffer<T> {
     }
 }
 
-pub use crate::results::image::to_srgb8;
-
 impl<T: Clock> Endpoint<T> for FrameBuffer<T> {
     fn receive(&mut self, node: u16, at: T, msg: Message) {
         match msg {
