@@ -77,6 +77,30 @@ macro_rules! renderer {
                 pub(super) scene: &'a Scene,
                 pub(super) grid: $v,
                 pub(super) rays: Cell<u64>,
+                /// Per unit cube (x fastest), the spheres whose bounding
+                /// box meets it: a grid walk; `None`: every sphere per ray.
+                pub(super) cells: Option<Vec<Vec<u16>>>,
+            }
+
+            /// Each cube's spheres, by bounding box.
+            pub(super) fn cells(scene: &Scene) -> Vec<Vec<u16>> {
+                let [gx, gy, gz] = scene.grid.map(usize::from);
+                let mut cells = vec![Vec::new(); gx * gy * gz];
+                for (i, s) in scene.spheres.iter().enumerate() {
+                    let range = |a: usize, n: usize| {
+                        let lo = (s.center[a] - s.radius).floor().max(0.0) as usize;
+                        let hi = ((s.center[a] + s.radius).floor().max(0.0) as usize).min(n - 1);
+                        lo.min(n - 1)..=hi
+                    };
+                    for z in range(2, gz) {
+                        for y in range(1, gy) {
+                            for x in range(0, gx) {
+                                cells[(z * gy + y) * gx + x].push(i as u16);
+                            }
+                        }
+                    }
+                }
+                cells
             }
 
             /// Hit at t >= 0 (entry from outside, exit from inside), as the firmware defines it.
@@ -109,19 +133,110 @@ macro_rules! renderer {
                     ignore: Option<usize>,
                     t_max: $f,
                 ) -> Option<($f, usize, bool)> {
+                    match &self.cells {
+                        None => {
+                            self.nearest(o, d, ignore, t_max, 0..self.scene.spheres.len(), <$f>::INFINITY)
+                        }
+                        Some(cells) => self.walk(cells, o, d, ignore, t_max),
+                    }
+                }
+
+                /// Nearest hit among `spheres` at t < min(`t_max`, `until`)
+                /// whose point lies in the grid box.
+                fn nearest(
+                    &self,
+                    o: $v,
+                    d: $v,
+                    ignore: Option<usize>,
+                    t_max: $f,
+                    spheres: impl Iterator<Item = usize>,
+                    until: $f,
+                ) -> Option<($f, usize, bool)> {
                     let mut best: Option<($f, usize, bool)> = None;
-                    for (i, s) in self.scene.spheres.iter().enumerate() {
+                    for i in spheres {
                         if Some(i) == ignore {
                             continue;
                         }
-                        let Some((t, inside)) = intersect(o, d, s) else { continue };
+                        let Some((t, inside)) = intersect(o, d, &self.scene.spheres[i]) else { continue };
                         let p = o + d * t;
                         let in_grid = p.cmpge(<$v>::ZERO).all() && p.cmple(self.grid).all();
-                        if t < t_max && in_grid && best.is_none_or(|b| t < b.0) {
+                        if t < t_max && t <= until && in_grid && best.is_none_or(|b| t < b.0) {
                             best = Some((t, i, inside));
                         }
                     }
                     best
+                }
+
+                /// The nearest hit by walking the cubes along the ray
+                /// (Amanatides and Woo), testing each cube's spheres: the
+                /// traversal the nodes do, in floating point.
+                fn walk(
+                    &self,
+                    cells: &[Vec<u16>],
+                    o: $v,
+                    d: $v,
+                    ignore: Option<usize>,
+                    t_max: $f,
+                ) -> Option<($f, usize, bool)> {
+                    let g = self.grid.to_array();
+                    let (o, d) = (o.to_array(), d.to_array());
+                    let (mut t0, mut t1): ($f, $f) = (0.0, <$f>::INFINITY);
+                    for a in 0..3 {
+                        if d[a] == 0.0 {
+                            if o[a] < 0.0 || o[a] > g[a] {
+                                return None;
+                            }
+                            continue;
+                        }
+                        let (ta, tb) = ((0.0 - o[a]) / d[a], (g[a] - o[a]) / d[a]);
+                        t0 = t0.max(ta.min(tb));
+                        t1 = t1.min(ta.max(tb));
+                    }
+                    if t0 > t1 || t0 >= t_max {
+                        return None;
+                    }
+                    let dims = self.scene.grid.map(i64::from);
+                    let mut cell = [0i64; 3];
+                    let (mut next, mut delta, mut step) =
+                        ([<$f>::INFINITY; 3], [<$f>::INFINITY; 3], [0i64; 3]);
+                    for a in 0..3 {
+                        let p = o[a] + d[a] * t0;
+                        cell[a] = (p.floor() as i64).clamp(0, dims[a] - 1);
+                        if d[a] > 0.0 {
+                            step[a] = 1;
+                            delta[a] = 1.0 / d[a];
+                            next[a] = ((cell[a] + 1) as $f - o[a]) / d[a];
+                        } else if d[a] < 0.0 {
+                            step[a] = -1;
+                            delta[a] = -1.0 / d[a];
+                            next[a] = (cell[a] as $f - o[a]) / d[a];
+                        }
+                    }
+                    let (ov, dv) = (<$v>::from_array(o), <$v>::from_array(d));
+                    loop {
+                        let exit = next[0].min(next[1]).min(next[2]);
+                        let index = ((cell[2] * dims[1] + cell[1]) * dims[0] + cell[0]) as usize;
+                        let spheres = cells.get(index).map_or(&[][..], |c| c.as_slice());
+                        let here = spheres.iter().map(|&i| usize::from(i));
+                        if let Some(hit) = self.nearest(ov, dv, ignore, t_max, here, exit) {
+                            return Some(hit);
+                        }
+                        if exit >= t_max || exit > t1 {
+                            return None;
+                        }
+                        let a = if next[0] <= next[1] && next[0] <= next[2] {
+                            0
+                        } else if next[1] <= next[2] {
+                            1
+                        } else {
+                            2
+                        };
+                        cell[a] += step[a];
+                        if cell[a] < 0 || cell[a] >= dims[a] {
+                            return None;
+                        }
+                        next[a] += delta[a];
+                    }
                 }
 
                 pub(super) fn trace(&self, o: $v, d: $v, weight: $v, depth: u8, ignore: Option<usize>) -> $v {
@@ -168,10 +283,11 @@ macro_rules! renderer {
                 }
             }
 
-            /// Renders `scene` at `width` x `height`.
-            pub(super) fn render(scene: &Scene, width: u16, height: u16) -> RefImage {
+            /// Renders `scene` at `width` x `height`, walking the grid's
+            /// cubes with `walk`, else testing every sphere per ray.
+            pub(super) fn render(scene: &Scene, width: u16, height: u16, walk: bool) -> RefImage {
                 let grid = v3(scene.grid.map(f64::from));
-                let world = World { scene, grid, rays: Cell::new(0) };
+                let world = World { scene, grid, rays: Cell::new(0), cells: walk.then(|| cells(scene)) };
                 let basis = PixelBasis::new(&scene.camera(), width, height);
                 let eye = v3(basis.eye);
                 let pixels = usize::from(width) * usize::from(height);
@@ -212,16 +328,48 @@ renderer!(in_f32, Vec3, f32);
 
 /// Renders `scene` at `width` x `height` in f64: the reference.
 pub fn render(scene: &Scene, width: u16, height: u16) -> RefImage {
-    in_f64::render(scene, width, height)
+    in_f64::render(scene, width, height, false)
 }
 
-/// Renders `scene` at `width` x `height` in f32: the floating-point baseline.
+/// Renders `scene` at `width` x `height` in f32, every sphere tested per ray.
 pub fn render_f32(scene: &Scene, width: u16, height: u16) -> RefImage {
-    in_f32::render(scene, width, height)
+    in_f32::render(scene, width, height, false)
+}
+
+/// Renders `scene` at `width` x `height` in f32 walking the grid's cubes, as
+/// the nodes do: the floating-point baseline on equal terms.
+pub fn render_f32_walked(scene: &Scene, width: u16, height: u16) -> RefImage {
+    in_f32::render(scene, width, height, true)
+}
+
+/// [`render_f32_walked`] in f64, for checking the walk against [`render`].
+pub fn render_walked(scene: &Scene, width: u16, height: u16) -> RefImage {
+    in_f64::render(scene, width, height, true)
 }
 
 /// `r - distance from the centre to the line` (positive inside the silhouette).
 pub fn silhouette_margin(o: DVec3, d: DVec3, s: &SphereDesc) -> f64 {
     let f = o - DVec3::from_array(s.center);
     s.radius - f.cross(d).length()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn walking_the_cubes_finds_what_testing_every_sphere_finds() {
+        for (seed, grid) in [(1, [12, 12, 12]), (2, [16, 9, 7])] {
+            let scene = Scene::random(60, seed, 0.5, grid).unwrap();
+            let (all, walked) = (render(&scene, 40, 32), render_walked(&scene, 40, 32));
+            let same_hit =
+                all.hits.iter().zip(&walked.hits).filter(|(a, b)| a.map(|h| h.sphere) == b.map(|h| h.sphere));
+            assert_eq!(same_hit.count(), all.hits.len(), "seed {seed}: a primary hit differs");
+            let near =
+                all.color.iter().zip(&walked.color).filter(|(a, b)| (**a - **b).abs().max_element() < 1e-9);
+            assert_eq!(near.count(), all.color.len(), "seed {seed}: a colour differs");
+            // The same ray tree.
+            assert_eq!(all.rays, walked.rays);
+        }
+    }
 }

@@ -47,8 +47,9 @@ pub fn document(commit: &str, tables: &[Table]) -> String {
     let mut s = String::from("# Results\n\n");
     let _ = writeln!(
         s,
-        "Made by `cargo run --release -p lab -- results` at commit {commit}, on the in-memory board \
-         (virtual cycles: the same code makes the same tables on any machine). The test \
+        "Made by `cargo run --release -p lab -- results` at commit {commit}, in units the machine does \
+         not move (virtual cycles of the in-memory board, Cortex-M3 instructions of its cost model, \
+         image errors): the same code makes the same tables on any machine. The test \
          `docs_results_md_is_current` (lab/tests/results.rs) fails when a table below is no \
          longer what the code makes; run the command again and commit the file.\n"
     );

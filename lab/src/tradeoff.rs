@@ -47,7 +47,8 @@ pub enum Arithmetic {
     PositionsQ12,
     /// Primary directions stepped in 16-bit fractions.
     CameraQ16,
-    /// The reference algorithm in single precision.
+    /// The reference algorithm in single precision, walking the grid's
+    /// cubes as the nodes do.
     F32,
 }
 
@@ -270,7 +271,7 @@ fn measure(base: &Scene, s: &Setting, cfg: &TradeoffConfig, reference: &[u8]) ->
     let [tw, th] = host_tool::results::image::traced(cfg.size, s.samples)?;
     let started = Instant::now();
     let (img, instructions) = match s.arithmetic {
-        Arithmetic::F32 => (float_as_direct(&reference::render_f32(&scene, tw, th)), None),
+        Arithmetic::F32 => (float_as_direct(&reference::render_f32_walked(&scene, tw, th)), None),
         a => {
             let bits = if a == Arithmetic::CameraQ16 { 16 } else { 30 };
             let cost = emulated_costs();
