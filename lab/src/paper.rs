@@ -20,7 +20,7 @@ use host_tool::error::HostError;
 use host_tool::plan::options::{Initial, Layout, RenderOptions};
 use host_tool::plan::partition::Partition;
 use host_tool::results::output::write_atomic;
-use host_tool::results::plot::{Chart, Series, png};
+use host_tool::results::plot::{Chart, Series, Style, png};
 use host_tool::scene::Scene;
 use host_tool::session::clock::Cycles;
 use host_tool::session::sim::render_sim;
@@ -223,12 +223,13 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
     let mut fig8 = String::from("S,spheres,makespan\n");
     let mut series7: Vec<Series> = ["A one node", "B eye node", "C parallel", "D entry (beyond the paper)"]
         .iter()
-        .map(|n| Series { name: n.to_string(), points: Vec::new(), markers: true })
+        .map(|n| Series { name: n.to_string(), points: Vec::new(), style: Style::LineWithMarkers })
         .collect();
     let mut series8: Vec<Series> = Vec::new();
     for &count in &cfg.counts {
         let scene = Scene::random(count, cfg.seed, 1.0, cfg.grid)?;
-        let mut s8 = Series { name: format!("C, {count} spheres"), points: Vec::new(), markers: true };
+        let mut s8 =
+            Series { name: format!("C, {count} spheres"), points: Vec::new(), style: Style::LineWithMarkers };
         let single = run(&scene, [1; 3], cfg, Initial::Parallel, Policy::Static, 0)?.makespan;
         for &n in &cfg.sides {
             let s = u32::from(n).pow(3) as f64;
@@ -314,16 +315,25 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
     for &count in &cfg.balance_counts {
         let mut series: Vec<Series> = Vec::new();
         for &n in &cfg.balance_arrays {
-            let mut paper =
-                Series { name: format!("{n}x{n}x{n}, paper's axis"), points: Vec::new(), markers: true };
-            let mut view =
-                Series { name: format!("{n}x{n}x{n}, view axis"), points: Vec::new(), markers: true };
-            let mut prop =
-                Series { name: format!("{n}x{n}x{n}, proportional"), points: Vec::new(), markers: true };
+            let mut paper = Series {
+                name: format!("{n}x{n}x{n}, paper's axis"),
+                points: Vec::new(),
+                style: Style::LineWithMarkers,
+            };
+            let mut view = Series {
+                name: format!("{n}x{n}x{n}, view axis"),
+                points: Vec::new(),
+                style: Style::LineWithMarkers,
+            };
+            let mut prop = Series {
+                name: format!("{n}x{n}x{n}, proportional"),
+                points: Vec::new(),
+                style: Style::LineWithMarkers,
+            };
             let mut entry = Series {
                 name: format!("{n}x{n}x{n}, entry tiles, proportional"),
                 points: Vec::new(),
-                markers: true,
+                style: Style::LineWithMarkers,
             };
             for &v in &cfg.ratios {
                 let scene = Scene::random(count, cfg.seed, v, cfg.grid)?;
@@ -503,7 +513,7 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
         series.push(Series {
             name: "paper: 3/4 at 1, 1/5 at 1/4".into(),
             points: vec![(1.0, 0.75), (0.25, 0.2)],
-            markers: true,
+            style: Style::LineWithMarkers,
         });
         panels.push((
             Chart {

@@ -12,7 +12,7 @@ use sim_board::Busy;
 use host_tool::error::HostError;
 use host_tool::plan::options::{Layout, RenderOptions};
 use host_tool::results::output::write_all_atomic;
-use host_tool::results::plot::{Chart, Series, png};
+use host_tool::results::plot::{Chart, Series, Style, png};
 use host_tool::scene::Scene;
 use host_tool::session::sim::render_sim;
 
@@ -227,7 +227,7 @@ fn chart(cfg: &ScalingConfig, rows: &[ScalingRow]) -> Result<Vec<u8>, HostError>
                     .filter(|r| r.layout == layout || r.nodes == 1)
                     .map(|r| (f64::from(r.nodes), f(r)))
                     .collect(),
-                markers: true,
+                style: Style::LineWithMarkers,
             })
             .collect()
     };

@@ -30,7 +30,7 @@ use host_tool::plan::options::RenderOptions;
 use host_tool::reference;
 use host_tool::results::image::srgb8;
 use host_tool::results::output::{check_writable, write_all_atomic};
-use host_tool::results::plot::{Chart, Series, png};
+use host_tool::results::plot::{Chart, Series, Style, png};
 use host_tool::scene::Scene;
 use host_tool::session::links::LinkChoice;
 use host_tool::session::sim::render_sim;
@@ -379,7 +379,7 @@ pub fn csv(points: &[Point]) -> String {
     let mut s = String::from(
         "samples,max_depth,grid,arithmetic,default,front_work,front_array,rays,instructions_per_frame,instructions_per_ray,\
          makespan_cycles,error_mean,error_p99,error_max,psnr_db,hit_agreement,gross_mismatches,depth_error_p99,\
-         normal_error_max_deg,host_ns_per_ray\n",
+         normal_error_max_deg,host_ns_per_ray_noisy\n",
     );
     for (i, p) in points.iter().enumerate() {
         let st = &p.setting;
@@ -461,17 +461,17 @@ fn chart(points: &[Point]) -> Result<Vec<u8>, HostError> {
             Series {
                 name: "settings".into(),
                 points: points.iter().skip(1).filter_map(xy).collect(),
-                markers: true,
+                style: Style::Markers,
             },
             Series {
                 name: "default".into(),
                 points: points.iter().take(1).filter_map(xy).collect(),
-                markers: true,
+                style: Style::Highlight,
             },
             Series {
                 name: "Pareto front".into(),
                 points: front(points, time).iter().filter_map(|&i| xy(&points[i])).collect(),
-                markers: false,
+                style: Style::Line,
             },
         ];
         let (title, x_label) = match time {

@@ -14,7 +14,7 @@ fn two_runs_make_the_same_csv() {
     let cfg = TradeoffConfig::quick();
     let first = csv(&sweep(&scene, &cfg).expect("the sweep runs"));
     let second = csv(&sweep(&scene, &cfg).expect("the sweep runs"));
-    assert!(first.lines().next().is_some_and(|h| h.ends_with(",host_ns_per_ray")), "{first}");
+    assert!(first.lines().next().is_some_and(|h| h.ends_with(",host_ns_per_ray_noisy")), "{first}");
     // One row per setting and the header: the default, 2 x 2 samples and depths, a grid, two variants.
     assert_eq!(first.lines().count(), 1 + 1 + 3 + 1 + 2, "{first}");
     assert_eq!(without_host_time(&first), without_host_time(&second));

@@ -11,7 +11,7 @@ use crate::error::HostError;
 use crate::plan::options::RenderOptions;
 use crate::results::RenderResult;
 use crate::results::history::boundary_history;
-use crate::results::plot::{Chart, Series, png};
+use crate::results::plot::{Chart, Series, Style, png};
 use crate::scene::Scene;
 use crate::session::clock::Clock;
 
@@ -198,7 +198,7 @@ pub fn history_plot<T: Clock>(r: &RenderResult<T>) -> Result<Vec<u8>, HostError>
         .into_iter()
         .enumerate()
         .filter(|(_, p)| !p.is_empty())
-        .map(|(n, points)| Series { name: format!("node {n}"), points, markers: false })
+        .map(|(n, points)| Series { name: format!("node {n}"), points, style: Style::Line })
         .collect();
     let history = boundary_history(&r.partition, &r.frame.slides);
     let mut lines: BTreeMap<(usize, usize), Vec<(f64, f64)>> = BTreeMap::new();
@@ -216,7 +216,7 @@ pub fn history_plot<T: Clock>(r: &RenderResult<T>) -> Result<Vec<u8>, HostError>
             if let Some(&(_, last)) = points.last() {
                 points.push((end, last));
             }
-            Series { name: format!("row {row} boundary {index}"), points, markers: false }
+            Series { name: format!("row {row} boundary {index}"), points, style: Style::Line }
         })
         .collect();
     let axis = ["x", "y", "z"][usize::from(r.partition.driving_axis)];

@@ -13,8 +13,21 @@ pub struct Series {
     pub name: String,
     /// Points (x, y).
     pub points: Vec<(f64, f64)>,
-    /// Draw markers as well as the line.
-    pub markers: bool,
+    /// How the points are drawn.
+    pub style: Style,
+}
+
+/// How a series' points are drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Style {
+    /// Joined by a line.
+    Line,
+    /// Joined by a line, each marked.
+    LineWithMarkers,
+    /// Each marked, not joined (a scatter).
+    Markers,
+    /// Each marked large, not joined: the point to look at.
+    Highlight,
 }
 
 /// A chart's frame.
@@ -117,13 +130,25 @@ where
                 let color = Palette99::pick(i).to_rgba();
                 let pts: Vec<(f64, f64)> =
                     s.points.iter().copied().filter(|p| p.0.is_finite() && p.1.is_finite()).collect();
-                ctx.draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
-                    .map_err(plot_err)?
-                    .label(s.name.as_str())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2)));
-                if s.markers {
-                    ctx.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
-                        .map_err(plot_err)?;
+                let legend = move |(x, y): (i32, i32)| {
+                    PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2))
+                };
+                if matches!(s.style, Style::Line | Style::LineWithMarkers) {
+                    ctx.draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+                        .map_err(plot_err)?
+                        .label(s.name.as_str())
+                        .legend(legend);
+                }
+                let radius = match s.style {
+                    Style::Line => continue,
+                    Style::Highlight => 7,
+                    Style::LineWithMarkers | Style::Markers => 3,
+                };
+                let marked = ctx
+                    .draw_series(pts.iter().map(|&p| Circle::new(p, radius, color.filled())))
+                    .map_err(plot_err)?;
+                if matches!(s.style, Style::Markers | Style::Highlight) {
+                    marked.label(s.name.as_str()).legend(legend);
                 }
             }
             if series.len() <= 12 {
