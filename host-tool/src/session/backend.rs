@@ -83,7 +83,7 @@ fn render_boards(
             // Check the scene before starting eight emulators.
             initial_partition(scene, opts, sim_board::SimNode::capacity())?;
             let how = Launch { faults: opts.sim.faults, ..Launch::default() };
-            let qemu = QemuArray::launch_with(*board, opts.array, firmware, how)?;
+            let mut qemu = QemuArray::launch_with(*board, opts.array, firmware, how)?;
             let result = render_serial(scene, opts, &qemu.ptys, false, node_timeout);
             let last_words = qemu.last_words();
             drop(qemu);

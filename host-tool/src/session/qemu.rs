@@ -157,6 +157,8 @@ pub struct QemuArray {
     /// What each emulator printed besides its pty (the firmware's panic or
     /// fault report comes through semihosting).
     said: Vec<Arc<Mutex<Vec<String>>>>,
+    /// The threads reading each emulator's output, until it ends.
+    readers: Vec<Vec<std::thread::JoinHandle<()>>>,
     /// Host-side device of each node, in node order.
     pub ptys: Vec<String>,
     /// The id each node's board was given, in node order.
@@ -214,6 +216,7 @@ impl QemuArray {
         let mut qemu = QemuArray {
             children: Vec::new(),
             said: (0..nodes).map(|_| Arc::new(Mutex::new(Vec::new()))).collect(),
+            readers: Vec::new(),
             ptys: vec![String::new(); nodes],
             ids: (0..nodes).map(|i| fresh_id(i, salt)).collect(),
             relay: Relay::with_faults(how.faults),
@@ -265,7 +268,8 @@ impl QemuArray {
                     "cannot start {QEMU}: {e}; install it (Debian: apt-get install qemu-system-arm)"
                 ))
             })?;
-            watch_for_pty(id, host_label, &mut child, tx.clone(), qemu.said[id].clone());
+            let readers = watch_for_pty(id, host_label, &mut child, tx.clone(), qemu.said[id].clone());
+            qemu.readers.push(readers);
             qemu.children.push(child);
         }
         for _ in 0..nodes {
@@ -292,7 +296,27 @@ impl QemuArray {
 
     /// What the emulators printed besides their ptys, each line naming its
     /// node: a panicking or faulting firmware's last words.
-    pub fn last_words(&self) -> Vec<String> {
+    pub fn last_words(&mut self) -> Vec<String> {
+        // An emulator whose firmware failed ends at once, but its report may
+        // still be in the pipe when the host sees its link close: wait a
+        // little for the emulators to end, and read all that ended have said.
+        let deadline = std::time::Instant::now() + Duration::from_millis(500);
+        for (child, readers) in self.children.iter_mut().zip(&mut self.readers) {
+            loop {
+                match child.try_wait() {
+                    Ok(Some(_)) => {
+                        for reader in readers.drain(..) {
+                            let _ = reader.join();
+                        }
+                        break;
+                    }
+                    Ok(None) if std::time::Instant::now() < deadline => {
+                        std::thread::sleep(Duration::from_millis(10));
+                    }
+                    _ => break,
+                }
+            }
+        }
         let lines = |(i, said): (usize, &Arc<Mutex<Vec<String>>>)| {
             let said = said.lock().map(|s| s.clone()).unwrap_or_default();
             said.into_iter().map(move |line| format!("node {i}: {line}"))
@@ -349,7 +373,7 @@ fn watch_for_pty(
     child: &mut Child,
     tx: mpsc::Sender<(usize, Result<String, String>)>,
     said: Arc<Mutex<Vec<String>>>,
-) {
+) -> Vec<std::thread::JoinHandle<()>> {
     let streams: Vec<Box<dyn std::io::Read + Send>> = [
         child.stderr.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>),
         child.stdout.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>),
@@ -357,11 +381,12 @@ fn watch_for_pty(
     .into_iter()
     .flatten()
     .collect();
+    let mut readers = Vec::new();
     for stream in streams {
         let tx = tx.clone();
         let said = said.clone();
         let label = format!("(label {label})");
-        std::thread::spawn(move || {
+        readers.push(std::thread::spawn(move || {
             let mut mine = Vec::new();
             for line in BufReader::new(stream).lines().map_while(Result::ok) {
                 if let Some(rest) = line.split("redirected to ").nth(1)
@@ -379,6 +404,7 @@ fn watch_for_pty(
             if !mine.is_empty() {
                 let _ = tx.send((id, Err(format!("exited: {}", mine.join(" / ")))));
             }
-        });
+        }));
     }
+    readers
 }
