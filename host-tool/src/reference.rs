@@ -61,8 +61,6 @@ pub fn render_sampled(scene: &Scene, size: [u16; 2], side: u16) -> Vec<DVec3> {
     crate::results::image::block_means(&img.color, w, h, side)
 }
 
-impl RefImage {}
-
 /// The renderer for one float type (`$v` a glam vector of `$f`).
 macro_rules! renderer {
     ($name:ident, $v:ty, $f:ty) => {

@@ -315,26 +315,13 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
     for &count in &cfg.balance_counts {
         let mut series: Vec<Series> = Vec::new();
         for &n in &cfg.balance_arrays {
-            let mut paper = Series {
-                name: format!("{n}x{n}x{n}, paper's axis"),
+            let line = |what: &str| Series {
+                name: format!("{n}x{n}x{n}, {what}"),
                 points: Vec::new(),
                 style: Style::LineWithMarkers,
             };
-            let mut view = Series {
-                name: format!("{n}x{n}x{n}, view axis"),
-                points: Vec::new(),
-                style: Style::LineWithMarkers,
-            };
-            let mut prop = Series {
-                name: format!("{n}x{n}x{n}, proportional"),
-                points: Vec::new(),
-                style: Style::LineWithMarkers,
-            };
-            let mut entry = Series {
-                name: format!("{n}x{n}x{n}, entry tiles, proportional"),
-                points: Vec::new(),
-                style: Style::LineWithMarkers,
-            };
+            let (mut paper, mut view) = (line("paper's axis"), line("view axis"));
+            let (mut prop, mut entry) = (line("proportional"), line("entry tiles, proportional"));
             for &v in &cfg.ratios {
                 let scene = Scene::random(count, cfg.seed, v, cfg.grid)?;
                 let base = run(&scene, [n; 3], cfg, Initial::Parallel, Policy::Static, 0)?;

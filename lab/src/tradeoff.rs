@@ -25,9 +25,9 @@ use std::time::Instant;
 
 use host_tool::compare::{Comparison, compare};
 use host_tool::error::{HostError, input};
-use host_tool::plan::direct::{self, DirectImage};
+use host_tool::plan::direct;
 use host_tool::plan::options::RenderOptions;
-use host_tool::reference;
+use host_tool::reference::{self, RefImage};
 use host_tool::results::image::srgb8;
 use host_tool::results::output::{check_writable, write_all_atomic};
 use host_tool::results::plot::{Chart, Series, Style, png};
@@ -236,15 +236,22 @@ fn emulated_costs() -> CostModel {
 
 /// The scene a setting renders.
 fn scene_for(base: &Scene, s: &Setting) -> Result<Scene, HostError> {
-    let mut scene = base.clone();
-    if let Some(g) = s.grid {
-        host_tool::scene::fit(&mut scene, Some(g))?;
-    }
+    let mut scene = geometry(base, s.grid)?;
     if s.arithmetic == Arithmetic::PositionsQ12 {
         scene = positions_rounded(&scene, 12);
     }
     scene.max_depth = s.max_depth;
     scene.validate()?;
+    Ok(scene)
+}
+
+/// The scene as it is, or fitted into `grid`: what the references of the
+/// settings on that grid render.
+fn geometry(base: &Scene, grid: Option<[u16; 3]>) -> Result<Scene, HostError> {
+    let mut scene = base.clone();
+    if let Some(g) = grid {
+        host_tool::scene::fit(&mut scene, Some(g))?;
+    }
     Ok(scene)
 }
 
@@ -257,15 +264,16 @@ fn reference_rgb(
     size: [u16; 2],
     side: u16,
 ) -> Result<Vec<u8>, HostError> {
-    let mut scene = base.clone();
-    if let Some(g) = grid {
-        host_tool::scene::fit(&mut scene, Some(g))?;
-    }
-    Ok(reference::rgb8_of(&reference::render_sampled(&scene, size, side)))
+    Ok(reference::rgb8_of(&reference::render_sampled(&geometry(base, grid)?, size, side)))
 }
 
 /// Measures one setting.
-fn measure(base: &Scene, s: &Setting, cfg: &TradeoffConfig, reference: &[u8]) -> Result<Point, HostError> {
+fn measure(
+    base: &Scene,
+    s: &Setting,
+    cfg: &TradeoffConfig,
+    refs: &mut References,
+) -> Result<Point, HostError> {
     let scene = scene_for(base, s)?;
     let side = host_tool::results::image::sample_side(s.samples)?;
     let [tw, th] = host_tool::results::image::traced(cfg.size, s.samples)?;
@@ -285,7 +293,14 @@ fn measure(base: &Scene, s: &Setting, cfg: &TradeoffConfig, reference: &[u8]) ->
     };
     let host_ns_per_ray = started.elapsed().as_secs_f64() * 1e9 / img.rays.max(1) as f64;
     let rgb = srgb8(&img.sums, tw, th, side);
-    let hits = hits_at_samples(&scene, [tw, th], &img)?;
+    // Against the unrounded geometry: input rounding is part of a variant's error.
+    let hits = {
+        let geometry = geometry(base, s.grid)?;
+        let at_samples = refs.at_samples(&geometry, s.grid, [tw, th])?;
+        let fixed_rgb = srgb8(&img.sums, tw, th, 1);
+        compare(&geometry, [tw, th], &img, &fixed_rgb, at_samples, &at_samples.rgb8())
+    };
+    let error = ImageError::of(&rgb, refs.image(base, s.grid)?);
     let makespan = match s.arithmetic {
         Arithmetic::Shipped | Arithmetic::PositionsQ12 => Some(makespan(&scene, s.samples, cfg)?),
         _ => None,
@@ -293,7 +308,7 @@ fn measure(base: &Scene, s: &Setting, cfg: &TradeoffConfig, reference: &[u8]) ->
     Ok(Point {
         setting: *s,
         label: s.label(base),
-        error: ImageError::of(&rgb, reference),
+        error,
         hits,
         rays: img.rays,
         instructions,
@@ -302,13 +317,49 @@ fn measure(base: &Scene, s: &Setting, cfg: &TradeoffConfig, reference: &[u8]) ->
     })
 }
 
-/// Primary hits, depths and normals against the reference's at the same
-/// sample positions and depth.
-fn hits_at_samples(scene: &Scene, traced: [u16; 2], img: &DirectImage) -> Result<Comparison, HostError> {
-    let [w, h] = traced;
-    let refimg = reference::render(scene, w, h);
-    let fixed_rgb = srgb8(&img.sums, w, h, 1);
-    Ok(compare(scene, traced, img, &fixed_rgb, &refimg, &refimg.rgb8()))
+/// The references a sweep measures against, each rendered once: per grid
+/// the finely sampled image, and per grid and traced size the f64 render at
+/// the very samples (for primary hits, which do not depend on the depth).
+struct References {
+    size: [u16; 2],
+    side: u16,
+    images: Vec<(Option<[u16; 3]>, Vec<u8>)>,
+    samples: Vec<(SamplesKey, RefImage)>,
+}
+
+/// A grid (`None`: the scene's own) and a traced size.
+type SamplesKey = (Option<[u16; 3]>, [u16; 2]);
+
+impl References {
+    /// The finely sampled reference image of `base` on `grid`.
+    fn image(&mut self, base: &Scene, grid: Option<[u16; 3]>) -> Result<&[u8], HostError> {
+        let i = match self.images.iter().position(|(g, _)| *g == grid) {
+            Some(i) => i,
+            None => {
+                self.images.push((grid, reference_rgb(base, grid, self.size, self.side)?));
+                self.images.len() - 1
+            }
+        };
+        Ok(&self.images[i].1)
+    }
+
+    /// The f64 render of `geometry` (the scene on `grid`) at `traced` samples.
+    fn at_samples(
+        &mut self,
+        geometry: &Scene,
+        grid: Option<[u16; 3]>,
+        traced: [u16; 2],
+    ) -> Result<&RefImage, HostError> {
+        let key = (grid, traced);
+        let i = match self.samples.iter().position(|(k, _)| *k == key) {
+            Some(i) => i,
+            None => {
+                self.samples.push((key, reference::render(geometry, traced[0], traced[1])));
+                self.samples.len() - 1
+            }
+        };
+        Ok(&self.samples[i].1)
+    }
 }
 
 /// The frame's makespan on the config's array with `render`'s defaults.
@@ -324,15 +375,11 @@ fn makespan(scene: &Scene, samples: u16, cfg: &TradeoffConfig) -> Result<u64, Ho
 /// Every setting of `cfg` on `scene`, the default first.
 pub fn sweep(scene: &Scene, cfg: &TradeoffConfig) -> Result<Vec<Point>, HostError> {
     let settings = cfg.settings(scene);
-    let mut references: Vec<(Option<[u16; 3]>, Vec<u8>)> = Vec::new();
+    let mut refs =
+        References { size: cfg.size, side: cfg.reference_side, images: Vec::new(), samples: Vec::new() };
     let mut points = Vec::new();
     for s in &settings {
-        if !references.iter().any(|(g, _)| *g == s.grid) {
-            references.push((s.grid, reference_rgb(scene, s.grid, cfg.size, cfg.reference_side)?));
-        }
-        let reference =
-            references.iter().find(|(g, _)| *g == s.grid).map(|(_, r)| r.as_slice()).unwrap_or(&[]);
-        let p = measure(scene, s, cfg, reference).map_err(|e| e.context(&s.label(scene)))?;
+        let p = measure(scene, s, cfg, &mut refs).map_err(|e| e.context(&s.label(scene)))?;
         eprintln!(
             "{}: error {:.3} (PSNR {:.1} dB), {} instructions",
             p.label,

@@ -38,8 +38,6 @@ pub struct Plan {
     pub tiles: Vec<[u16; 4]>,
     /// The image the nodes trace, in samples ([`RenderOptions::trace_size`]).
     pub trace_size: [u16; 2],
-    /// Samples per pixel along each axis.
-    pub sample_side: u16,
 }
 
 impl Plan {
@@ -58,7 +56,7 @@ impl Plan {
         capacity: Capacity,
     ) -> Result<Self, HostError> {
         check_frame(scene, options, &partition, capacity)?;
-        let trace_size = trace_size(options)?;
+        let trace_size = options.trace_size()?;
         let [w, h] = trace_size;
         let basis = PixelBasis::new(&scene.camera(), w, h);
         let view_axis = view_axis(scene);
@@ -72,8 +70,12 @@ impl Plan {
                 (0..partition.len()).map(|i| if i == eye { [0, 0, w, h] } else { [0; 4] }).collect()
             }
         };
-        let sample_side = crate::results::image::sample_side(options.samples)?;
-        Ok(Self { options: *options, partition, view_axis, basis, tiles, trace_size, sample_side })
+        Ok(Self { options: *options, partition, view_axis, basis, tiles, trace_size })
+    }
+
+    /// Samples per pixel along each axis.
+    pub fn sample_side(&self) -> u16 {
+        self.trace_size[0] / self.options.size[0].max(1)
     }
 
     /// Number of nodes.
@@ -99,7 +101,7 @@ pub fn initial_partition(
     opts: &RenderOptions,
     capacity: Capacity,
 ) -> Result<Partition, HostError> {
-    let traced = trace_size(opts)?;
+    let traced = opts.trace_size()?;
     let axis = match opts.driving_axis {
         Some(a) if a > 2 => return Err(input(format!("driving axis {a} must be 0, 1 or 2"))),
         Some(a) => a,
@@ -136,24 +138,9 @@ pub fn check_frame(
     partition: &Partition,
     capacity: Capacity,
 ) -> Result<(), HostError> {
-    trace_size(opts)?;
+    opts.trace_size()?;
     partition.check_capacity(scene, capacity)?;
     check_pool(scene, opts, partition.driving_axis, partition.boundaries(), capacity)
-}
-
-/// The image size checked, then the size the nodes trace with its samples.
-fn trace_size(opts: &RenderOptions) -> Result<[u16; 2], HostError> {
-    let [w, h] = opts.size;
-    crate::session::frame::check_size(w, h)?;
-    let [tw, th] = opts.trace_size()?;
-    crate::session::frame::check_size(tw, th).map_err(|e| {
-        if opts.samples > 1 {
-            e.context(&format!("at --samples {} the nodes trace {tw}x{th} samples", opts.samples))
-        } else {
-            e
-        }
-    })?;
-    Ok([tw, th])
 }
 
 /// Checks that a node's ray pool can take the class levels and slots a frame

@@ -134,7 +134,7 @@ impl RenderOptions {
     }
 
     /// The image the nodes trace: `size` times the samples per axis, each
-    /// pixel of the image the mean of a block of it.
+    /// pixel of the image the mean of a block of it; both sizes checked.
     pub fn trace_size(&self) -> Result<[u16; 2], HostError> {
         crate::results::image::traced(self.size, self.samples)
     }

@@ -7,6 +7,7 @@
 use glam::DVec3;
 
 use crate::error::{HostError, input};
+use crate::session::frame::check_size;
 
 /// The most samples per pixel: an 8 x 8 grid.
 pub const MAX_SAMPLES: u16 = 64;
@@ -22,17 +23,22 @@ pub fn sample_side(samples: u16) -> Result<u16, HostError> {
 }
 
 /// The samples traced along each axis for a `size` image at `samples` a
-/// pixel.
+/// pixel, both sizes checked ([`check_size`]).
 pub fn traced(size: [u16; 2], samples: u16) -> Result<[u16; 2], HostError> {
-    let side = sample_side(samples)?;
     let [w, h] = size;
-    match (w.checked_mul(side), h.checked_mul(side)) {
-        (Some(tw), Some(th)) => Ok([tw, th]),
-        _ => Err(HostError::ImageSize(format!(
+    check_size(w, h)?;
+    let side = sample_side(samples)?;
+    let (Some(tw), Some(th)) = (w.checked_mul(side), h.checked_mul(side)) else {
+        return Err(HostError::ImageSize(format!(
             "image size {w}x{h} at {samples} samples a pixel traces over 65535 samples along an axis: \
              lower --size or --samples"
-        ))),
-    }
+        )));
+    };
+    check_size(tw, th).map_err(|e| match samples {
+        1 => e,
+        _ => e.context(&format!("at --samples {samples} the nodes trace {tw}x{th} samples")),
+    })?;
+    Ok([tw, th])
 }
 
 /// Sums each `side` x `side` block of a `width` x `height` buffer (row

@@ -63,35 +63,11 @@ pub fn render(
     backend: &Backend,
     node_timeout: Duration,
 ) -> Result<Rendered, HostError> {
-    match backend {
-        Backend::Sim => render_sim(scene, opts).map(Rendered::Sim),
-        boards => render_boards(scene, opts, boards, node_timeout).map(Rendered::Boards),
-    }
-}
-
-/// Renders `scene` on emulated or real boards.
-fn render_boards(
-    scene: &Scene,
-    opts: &RenderOptions,
-    backend: &Backend,
-    node_timeout: Duration,
-) -> Result<RenderResult<HostMicros>, HostError> {
     let nodes: usize = opts.array.iter().map(|&n| usize::from(n)).product();
     match backend {
-        Backend::Sim => Err(input("the in-memory board is not a board behind a serial device")),
+        Backend::Sim => render_sim(scene, opts).map(Rendered::Sim),
         Backend::Qemu { board, firmware } => {
-            // Check the scene before starting eight emulators.
-            initial_partition(scene, opts, sim_board::SimNode::capacity())?;
-            let how = Launch { faults: opts.sim.faults, ..Launch::default() };
-            let mut qemu = QemuArray::launch_with(*board, opts.array, firmware, how)?;
-            let result = render_serial(scene, opts, &qemu.ptys, false, node_timeout);
-            let last_words = qemu.last_words();
-            drop(qemu);
-            // A firmware that panicked or faulted said where, on its emulator's output.
-            result.map_err(|e| match last_words.as_slice() {
-                [] => e,
-                words => e.append(&format!("; the emulators said: {}", words.join(" / "))),
-            })
+            render_qemu(scene, opts, *board, firmware, node_timeout).map(Rendered::Boards)
         }
         Backend::Serial { ports, .. } if ports.len() != nodes => Err(input(format!(
             "--ports lists {} devices; the {}x{}x{} array has {nodes} nodes",
@@ -101,9 +77,31 @@ fn render_boards(
             opts.array[2]
         ))),
         Backend::Serial { ports, order_ports } => {
-            render_serial(scene, opts, ports, *order_ports, node_timeout)
+            render_serial(scene, opts, ports, *order_ports, node_timeout).map(Rendered::Boards)
         }
     }
+}
+
+/// Renders `scene` on an array of emulated `board`s running `firmware`.
+fn render_qemu(
+    scene: &Scene,
+    opts: &RenderOptions,
+    board: EmulatedBoard,
+    firmware: &std::path::Path,
+    node_timeout: Duration,
+) -> Result<RenderResult<HostMicros>, HostError> {
+    // Check the scene before starting the emulators.
+    initial_partition(scene, opts, sim_board::SimNode::capacity())?;
+    let how = Launch { faults: opts.sim.faults, ..Launch::default() };
+    let mut qemu = QemuArray::launch_with(board, opts.array, firmware, how)?;
+    let result = render_serial(scene, opts, &qemu.ptys, false, node_timeout);
+    let last_words = qemu.last_words();
+    drop(qemu);
+    // A firmware that panicked or faulted said where, on its emulator's output.
+    result.map_err(|e| match last_words.as_slice() {
+        [] => e,
+        words => e.append(&format!("; the emulators said: {}", words.join(" / "))),
+    })
 }
 
 /// Renders `scene` on boards behind serial devices `ports`: in node order,

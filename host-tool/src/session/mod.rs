@@ -45,7 +45,7 @@ pub fn run<T: Transport>(
 ) -> Result<RenderResult<T::Time>, HostError> {
     let [w, h] = plan.trace_size;
     let started = Instant::now();
-    let mut frame = FrameBuffer::new(w, h, transport.nodes(), PIXEL_CREDIT).sampled(plan.sample_side);
+    let mut frame = FrameBuffer::new(w, h, transport.nodes(), PIXEL_CREDIT).sampled(plan.sample_side());
     broadcast(transport, scene, plan);
 
     let mut tracked = Tracked::new(&mut frame);
