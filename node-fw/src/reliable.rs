@@ -62,6 +62,20 @@ impl core::ops::Add for ChannelStats {
     }
 }
 
+impl core::ops::Sub for ChannelStats {
+    type Output = Self;
+
+    /// What happened between two readings, `self` the later.
+    fn sub(self, o: Self) -> Self {
+        Self {
+            retransmitted: self.retransmitted.saturating_sub(o.retransmitted),
+            corrupted: self.corrupted.saturating_sub(o.corrupted),
+            discarded: self.discarded.saturating_sub(o.discarded),
+            peer_restarts: self.peer_restarts.saturating_sub(o.peer_restarts),
+        }
+    }
+}
+
 impl core::iter::Sum for ChannelStats {
     fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
         iter.fold(Self::default(), |a, b| a + b)

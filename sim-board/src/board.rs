@@ -80,6 +80,8 @@ impl std::error::Error for SimError {}
 /// Counters of a run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct RunStats {
+    /// Virtual time when the run started.
+    pub start: u64,
     /// Virtual time when the run stopped.
     pub end: u64,
     /// Rounds simulated.
@@ -275,6 +277,7 @@ impl Board {
     pub fn run(&mut self, host: &mut impl HostEndpoint) -> Result<RunStats, SimError> {
         let lookahead = self.config.link.latency.min(self.config.host_link.latency).max(1);
         let mut now = self.slots.iter().map(|s| s.clock).min().unwrap_or(0);
+        let start = now;
         while !host.finished() {
             let host_busy = self.host_channels.iter().any(Channel::busy)
                 || self.host_backlog.iter().any(|b| !b.is_empty());
@@ -313,7 +316,7 @@ impl Board {
             }
             now = end;
         }
-        Ok(RunStats { end: now, rounds: self.rounds })
+        Ok(RunStats { start, end: now, rounds: self.rounds })
     }
 
     /// Runs every node with something to do before `end`; returns whether any worked.

@@ -98,6 +98,7 @@ impl CostModel {
                 + u64::from(w.extra_records) * self.retire_record,
             pass: if w.is_busy() { self.pass } else { 0 },
             polls: u64::from(w.is_busy()),
+            sent: u64::from(w.sent),
         }
     }
 }
@@ -119,6 +120,8 @@ pub struct Busy {
     pub pass: u64,
     /// Polls that did work (a count, not cycles).
     pub polls: u64,
+    /// Messages sent, to neighbours and the host (a count, not cycles).
+    pub sent: u64,
 }
 
 impl Busy {
@@ -144,6 +147,23 @@ impl std::ops::AddAssign for Busy {
         self.messaging += other.messaging;
         self.pass += other.pass;
         self.polls += other.polls;
+        self.sent += other.sent;
+    }
+}
+
+impl std::ops::Sub for Busy {
+    type Output = Busy;
+
+    /// What was spent between two readings of one node, `self` the later.
+    fn sub(self, earlier: Busy) -> Busy {
+        Busy {
+            compute: self.compute.saturating_sub(earlier.compute),
+            setup: self.setup.saturating_sub(earlier.setup),
+            messaging: self.messaging.saturating_sub(earlier.messaging),
+            pass: self.pass.saturating_sub(earlier.pass),
+            polls: self.polls.saturating_sub(earlier.polls),
+            sent: self.sent.saturating_sub(earlier.sent),
+        }
     }
 }
 

@@ -73,6 +73,31 @@ pub fn boundary_history<T: Clock>(partition: &Partition, slides: &[SlideSeen<T>]
     out
 }
 
+/// The partition once `slides` are done: every boundary where its last
+/// slide left it (the subregions the nodes hold when the frame has ended).
+pub fn after_slides<T: Clock>(partition: &Partition, slides: &[SlideSeen<T>]) -> Partition {
+    let d = usize::from(partition.driving_axis);
+    let [a0, a1] = partition.row_axes();
+    let width = usize::from(partition.array[a0]);
+    let rows = width * usize::from(partition.array[a1]);
+    let row_coord = |r: usize| {
+        let mut c = [0u16; 3];
+        c[a0] = (r % width) as u16;
+        c[a1] = (r / width) as u16;
+        c
+    };
+    let mut row_cuts: Vec<Vec<u16>> =
+        (0..rows).map(|r| partition.cuts_at(d, row_coord(r)).to_vec()).collect();
+    for b in boundary_history(partition, slides) {
+        if let Some(cut) = row_cuts.get_mut(b.row).and_then(|cuts| cuts.get_mut(b.index + 1)) {
+            *cut = b.position;
+        }
+    }
+    // Rows that all line up again need no cuts of their own.
+    let whole = row_cuts.iter().all(|cuts| *cuts == partition.cuts[d]);
+    Partition { row_cuts: (!whole).then_some(row_cuts), ..partition.clone() }
+}
+
 /// How much boundaries moved within a window of time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Churn {
@@ -144,5 +169,25 @@ mod tests {
         let h = boundary_history(&p, &notes);
         let moves: Vec<(u64, u16)> = h.iter().map(|b| (b.time.0, b.position)).collect();
         assert_eq!(moves, [(0, 8), (70, 9), (70, 8)]);
+        // Back where it started: the partition lines up as before.
+        assert_eq!(after_slides(&p, &notes), p);
+    }
+
+    #[test]
+    fn after_slides_moves_each_rows_boundary_to_its_last_position() {
+        use link_proto::SlideNote;
+        // 2x2x1 along x on 16x8x4: rows y = 0 and y = 1, each cut at 8.
+        let p = Partition::even([16, 8, 4], [2, 2, 1], 0).unwrap();
+        let seen = |node, boundary, count| SlideSeen {
+            at: Cycles(10 * u64::from(count)),
+            node,
+            note: SlideNote { boundary, high_side: true, count },
+        };
+        // Row 1 (nodes 2 and 3): node 2 takes two slabs, to 9 then 10.
+        let slid = after_slides(&p, &[seen(2, 9, 1), seen(2, 10, 2)]);
+        assert_eq!(slid.row_cuts, Some(vec![vec![0, 8, 16], vec![0, 10, 16]]));
+        assert_eq!(slid.bounds(2).hi[0], 10);
+        assert_eq!(slid.bounds(3).lo[0], 10);
+        assert_eq!(slid.bounds(0).hi[0], 8);
     }
 }

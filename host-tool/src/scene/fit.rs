@@ -40,6 +40,10 @@ pub fn fit(scene: &mut Scene, grid: Option<[u16; 3]>) -> Result<(), HostError> {
     let place = |p: [f64; 3]| -> [f64; 3] { std::array::from_fn(|a| (p[a] - mid(a)) * scale + g[a] / 2.0) };
     let camera = scene.camera();
     scene.camera = Some(super::Camera { eye: place(camera.eye), look_at: place(camera.look_at), ..camera });
+    for key in &mut scene.keyframes {
+        let c = key.camera;
+        key.camera = super::Camera { eye: place(c.eye), look_at: place(c.look_at), ..c };
+    }
     for light in &mut scene.lights {
         light.position = place(light.position);
     }

@@ -10,7 +10,8 @@
 //!   "max_depth": 3,
 //!   "lights": [{"position": [40, 60, -20], "color": [0.8, 0.8, 0.8]}],
 //!   "spheres": [{"center": [16, 16, 16], "radius": 2.5, "color": [0.9, 0.3, 0.2],
-//!                "ambient": 0.3, "diffuse": 0.7, "specular": 0.4, "shininess": 24, "reflect": 0.3}]
+//!                "ambient": 0.3, "diffuse": 0.7, "specular": 0.4, "shininess": 24, "reflect": 0.3}],
+//!   "keyframes": [{"frame": 0, "camera": {"eye": [16, 16, -30], "look_at": [16, 16, 16]}}]
 //! }
 //! ```
 //! Lengths are in unit cubes; colours and coefficients in `[0, 2)`.
@@ -24,6 +25,7 @@ use crate::error::{HostError, input};
 
 pub mod fit;
 pub mod nff;
+pub mod path;
 
 pub use fit::fit;
 
@@ -128,6 +130,9 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// Spheres.
     pub spheres: Vec<SphereDesc>,
+    /// Cameras pinned to frames of a sequence ([`path`]); none: `camera` throughout.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub keyframes: Vec<path::Keyframe>,
 }
 
 fn default_grid() -> [u16; 3] {
@@ -297,6 +302,7 @@ impl Scene {
             max_depth: default_depth(),
             lights,
             spheres,
+            keyframes: Vec::new(),
         };
         scene.validate()?;
         Ok(scene)
@@ -358,7 +364,7 @@ impl Scene {
         for (i, s) in self.spheres.iter().enumerate() {
             validate_sphere(i, s, &g)?;
         }
-        Ok(())
+        path::check_keyframes(self)
     }
 
     /// The scene header message.

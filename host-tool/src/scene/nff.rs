@@ -52,6 +52,7 @@ pub fn parse(text: &str, source: &str, skip_unsupported: bool) -> Result<NffScen
         max_depth: default_depth(),
         lights: Vec::new(),
         spheres: Vec::new(),
+        keyframes: Vec::new(),
     };
     let mut fill = NO_FILL;
     let mut warnings = Vec::new();

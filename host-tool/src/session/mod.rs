@@ -15,6 +15,7 @@ pub mod links;
 mod progress;
 pub mod qemu;
 pub mod relay;
+pub mod sequence;
 pub mod serial;
 pub mod sim;
 pub mod transport;
@@ -43,10 +44,30 @@ pub fn run<T: Transport>(
     scene: &Scene,
     plan: &Plan,
 ) -> Result<RenderResult<T::Time>, HostError> {
+    load(transport, scene, plan);
+    frame(transport, plan, 0)
+}
+
+/// Renders frame `number` on nodes that hold the scene and the subregions
+/// `plan.partition` names (sent by [`load`], or left there by the frame
+/// before): start, render until every ray is accounted for, then collect the
+/// final loads, which the nodes send once their slides have settled. Bytes
+/// and busy cycles are the frame's own.
+pub fn frame<T: Transport>(
+    transport: &mut T,
+    plan: &Plan,
+    number: u32,
+) -> Result<RenderResult<T::Time>, HostError> {
     let [w, h] = plan.trace_size;
     let started = Instant::now();
+    let nodes = 0..transport.nodes();
+    let before: Vec<_> = nodes
+        .clone()
+        .map(|i| (transport.bytes_sent(i), transport.bytes_received(i), transport.busy(i)))
+        .collect();
+    let links_before = transport.link_stats();
     let mut frame = FrameBuffer::new(w, h, transport.nodes(), PIXEL_CREDIT).sampled(plan.sample_side());
-    broadcast(transport, scene, plan);
+    start(transport, plan, number);
 
     let mut tracked = Tracked::new(&mut frame);
     let run = transport.run(&mut tracked);
@@ -56,31 +77,30 @@ pub fn run<T: Transport>(
     let stats = run.map_err(|e| e.context("render failed"))?;
 
     frame.finishing = true;
-    for id in 0..transport.nodes() {
-        transport.send(id, Message::Finish(link_proto::Finish { frame: 0 }));
+    for id in nodes.clone() {
+        transport.send(id, Message::Finish(link_proto::Finish { frame: number }));
     }
     transport.run(&mut frame).map_err(|e| e.context("collecting loads failed"))?;
     node_errors(&frame, plan)?;
-    let nodes = 0..transport.nodes();
+    let since = |now: [u64; 7], then: [u64; 7]| std::array::from_fn(|p| now[p].saturating_sub(then[p]));
     Ok(RenderResult {
         frame,
         partition: plan.partition.clone(),
         stats,
-        bytes: nodes.clone().map(|i| transport.bytes_sent(i)).collect(),
-        bytes_in: nodes.clone().map(|i| transport.bytes_received(i)).collect(),
-        busy: nodes.map(|i| transport.busy(i)).collect(),
+        bytes: nodes.clone().map(|i| since(transport.bytes_sent(i), before[i].0)).collect(),
+        bytes_in: nodes.clone().map(|i| since(transport.bytes_received(i), before[i].1)).collect(),
+        busy: nodes.map(|i| transport.busy(i).zip(before[i].2).map(|(now, then)| now - then)).collect(),
         wall: started.elapsed(),
-        links: transport.link_stats(),
+        links: transport.link_stats() - links_before,
     })
 }
 
-/// Sends the scene, its assignment and the render start to every node.
-fn broadcast(transport: &mut impl Transport, scene: &Scene, plan: &Plan) {
-    let opts = &plan.options;
-    let camera = plan.camera();
+/// Sends the scene and each node's assignment: what every frame on this
+/// partition needs, sent once.
+pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan) {
     let spheres = scene.sphere_msgs();
     let lights = scene.light_msgs();
-    for (id, tile) in plan.tiles.iter().enumerate() {
+    for id in 0..plan.tiles.len() {
         transport.send(id, Message::SceneBegin(scene.header()));
         transport.send(id, Message::Assign(plan.assign(id)));
         for s in &spheres {
@@ -91,10 +111,18 @@ fn broadcast(transport: &mut impl Transport, scene: &Scene, plan: &Plan) {
         }
         let end = SceneEnd { spheres: spheres.len() as u32, lights: lights.len() as u8 };
         transport.send(id, Message::SceneEnd(end));
+    }
+}
+
+/// Starts frame `number` on every node: its camera and tile.
+fn start(transport: &mut impl Transport, plan: &Plan, number: u32) {
+    let opts = &plan.options;
+    let camera = plan.camera();
+    for (id, tile) in plan.tiles.iter().enumerate() {
         transport.send(
             id,
             Message::RenderStart(RenderStart {
-                frame: 0,
+                frame: number,
                 size: plan.trace_size,
                 camera,
                 initial: opts.initial.wire(),

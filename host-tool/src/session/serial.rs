@@ -363,8 +363,9 @@ impl Transport for SerialArray {
     /// Moves messages until `host` is finished; fails naming a node that
     /// stops answering.
     fn run(&mut self, host: &mut impl Endpoint<HostMicros>) -> Result<RunEnd<HostMicros>, HostError> {
+        let start = self.micros();
         for (node, msg) in std::mem::take(&mut self.greeted) {
-            host.receive(node, self.micros(), msg);
+            host.receive(node, start, msg);
         }
         let mut rounds = 0;
         let mut progress = Instant::now();
@@ -394,7 +395,7 @@ impl Transport for SerialArray {
         }
         // Let the last acknowledgements out so the nodes' windows drain.
         self.pump(&mut |_, _, _| {})?;
-        Ok(RunEnd { end: self.micros(), rounds })
+        Ok(RunEnd { start, end: self.micros(), rounds })
     }
 }
 

@@ -44,7 +44,7 @@ impl Transport for Board {
 
     fn run(&mut self, host: &mut impl Endpoint<Cycles>) -> Result<RunEnd<Cycles>, HostError> {
         let stats = Board::run(self, &mut Stamped(host)).map_err(|e| HostError::Node(e.to_string()))?;
-        Ok(RunEnd { end: Cycles(stats.end), rounds: stats.rounds })
+        Ok(RunEnd { start: Cycles(stats.start), end: Cycles(stats.end), rounds: stats.rounds })
     }
 
     fn bytes_sent(&self, node: usize) -> [u64; 7] {

@@ -24,6 +24,8 @@ pub trait Endpoint<T> {
 /// How a run ended, on the transport's clock.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct RunEnd<T> {
+    /// When the run started.
+    pub start: T,
     /// When the run stopped.
     pub end: T,
     /// Rounds of the transport's loop.

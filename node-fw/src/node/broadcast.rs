@@ -34,7 +34,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         for n in &mut self.ports {
             n.forget_rays();
             n.present = false;
+            (n.ends_seen, n.end_due) = (0, false);
         }
+        self.frames_ended = 0;
         self.hello_due = true;
         // A new host session learns the cabling afresh (the cables stay).
         for n in &mut self.ports {

@@ -163,6 +163,8 @@ pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> 
     slide: SlideState,
     /// Small control messages (loads, slide replies, notices) waiting for room.
     control: Deque<(Port, Message), 16>,
+    /// Frames this node has ended since its session began.
+    frames_ended: u32,
 }
 
 /// Interval of the final load report sent after `Finish`.
@@ -217,6 +219,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             intervals: IntervalClock::idle(),
             slide: SlideState::new(),
             control: Deque::new(),
+            frames_ended: 0,
         }
     }
 
@@ -358,13 +361,37 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.fail(r.code, r.a, r.b);
     }
 
-    /// The host's `Finish`: the frame is over. The final load report is due,
-    /// and no more interval reports: over a slow host link a report each
-    /// interval can fill the link faster than it drains and hold the final
-    /// one back for ever (seen at 20 000-cycle intervals over 921 600 baud).
+    /// The host's `Finish`: the frame is over. The final load report is due
+    /// once every slide under way has settled (so the host, having all final
+    /// reports, knows where every boundary is), and no more interval reports:
+    /// over a slow host link a report each interval can fill the link faster
+    /// than it drains and hold the final one back for ever (seen at
+    /// 20 000-cycle intervals over 921 600 baud).
+    ///
+    /// The node keeps its subregion and its spheres, ready for the next
+    /// frame's `RenderStart`. It gives no more grants and tells each
+    /// neighbour the frame ended: the grants it gave are void, and the
+    /// neighbour, which takes our `Finish` after every grant we sent on
+    /// that link, knows which of its grants are.
     fn finish_frame(&mut self) {
         self.load_due = Some(FINAL_INTERVAL);
         self.intervals = IntervalClock::idle();
+        if self.phase == Phase::Rendering {
+            self.phase = Phase::Loaded;
+            self.frames_ended = self.frames_ended.wrapping_add(1);
+            for n in self.ports.iter_mut().filter(|n| n.present) {
+                (n.grants_given, n.grants_due) = (0, 0);
+                n.end_due = true;
+            }
+        }
+    }
+
+    /// A neighbour ended its frame: every grant it gave before is void.
+    fn neighbour_ended(&mut self, port: Port) {
+        if let Some(n) = self.ports.get_mut(port.index()) {
+            n.ends_seen = n.ends_seen.wrapping_add(1);
+            n.grants_held = 0;
+        }
     }
 
     /// Dispatches one message by its port and kind.
@@ -388,6 +415,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             (Port::Host, Message::SceneEnd(end)) => self.end_scene(end.spheres, end.lights),
             (Port::Host, Message::RenderStart(r)) => self.start_render(r),
             (Port::Host, Message::Finish(_)) => self.finish_frame(),
+            (p, Message::Finish(_)) => self.neighbour_ended(p),
             (p, Message::Ray(ray)) if p != Port::Host => self.admit_ray(p, ray),
             (p, Message::GrantedRay(ray)) if p != Port::Host => self.admit_granted(p, ray),
             (p, Message::Grant(n)) if p != Port::Host => self.take_grant(p, n),

@@ -26,6 +26,10 @@ pub(super) struct Neighbour {
     pub(super) grants_given: u16,
     /// Of those, the ones not yet told.
     pub(super) grants_due: u16,
+    /// Frames the neighbour has said it ended (its `Finish` on this port).
+    pub(super) ends_seen: u32,
+    /// Our end of a frame is still to be told.
+    pub(super) end_due: bool,
     /// The board that said hello there.
     pub(super) peer: Option<BoardId>,
     /// Our hello is still to go.
@@ -45,6 +49,8 @@ impl Neighbour {
         grants_held: 0,
         grants_given: 0,
         grants_due: 0,
+        ends_seen: 0,
+        end_due: false,
         peer: None,
         hello_due: true,
         note_due: false,
@@ -64,6 +70,14 @@ impl Neighbour {
 
     /// Whether anything is owed on this port (or to the host about it).
     pub(super) fn owes(&self) -> bool {
-        self.note_due || self.space_due || self.grants_due > 0 || !self.replies.is_empty()
+        self.note_due || self.space_due || self.end_due || self.grants_due > 0 || !self.replies.is_empty()
+    }
+
+    /// Whether the grants held are of the frame this node is in: the
+    /// neighbour has told us the end of every frame we ended. Until its end
+    /// arrives, what we hold may be grants of the frame before, whose slots
+    /// its new frame no longer sets aside.
+    pub(super) fn grants_current(&self, ends: u32) -> bool {
+        self.ends_seen == ends
     }
 }

@@ -167,9 +167,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
     }
 
-    /// Whether the neighbour on `port` has granted us a ray we have not used.
-    fn holds_grant(&self, port: Port) -> bool {
-        self.ports.get(port.index()).is_some_and(|n| n.grants_held > 0)
+    /// Whether the neighbour on `port` has granted us a ray of this frame
+    /// we have not used.
+    pub(super) fn holds_grant(&self, port: Port) -> bool {
+        self.ports.get(port.index()).is_some_and(|n| n.grants_held > 0 && n.grants_current(self.frames_ended))
     }
 
     /// A slot freed: tell every neighbour we refused that it may retry.

@@ -11,7 +11,7 @@ use crate::load::Load;
 use crate::slide::{self, Incoming, Outgoing, Side};
 use crate::sphere::Sphere;
 
-use super::Node;
+use super::{Node, Phase};
 
 impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
     /// Begins giving the slab up to `boundary` on `side` away.
@@ -35,7 +35,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                     Side::Lo => o.boundary > lo && o.boundary < hi,
                     Side::Hi => o.boundary < hi && o.boundary > lo,
                 };
-                let refused = if self.slide.busy(side) {
+                // After the frame's end nothing new starts: the host takes
+                // the final reports as every boundary's last word.
+                let refused = if self.slide.busy(side) || self.phase != Phase::Rendering {
                     Some(SlideRefusal::Busy)
                 } else if !keeps_a_layer {
                     Some(SlideRefusal::Empty)

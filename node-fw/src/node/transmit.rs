@@ -1,12 +1,13 @@
 //! Sending: replies, notices, rays and retirements, control messages and
 //! slabs, as far as the links take them this poll.
 
-use link_proto::{ErrorCode, LoadReport, Message, PeerNote, Retire, Retirements, Site};
+use link_proto::{ErrorCode, Finish, LoadReport, Message, PeerNote, Retire, Retirements, Site};
 
 use crate::link::{Links, Port};
 use crate::pool::Stage;
+use crate::slide::Side;
 
-use super::{MAX_OUTSTANDING, Node, Work};
+use super::{FINAL_INTERVAL, MAX_OUTSTANDING, Node, Work};
 
 impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
     /// Queues a control message; loads beyond half the queue are dropped (a
@@ -75,6 +76,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             if n.grants_due > 0 && send(links, port, Message::Grant(n.grants_due)) {
                 n.grants_due = 0;
             }
+            // After any grant: the end voids every grant before it.
+            if n.end_due {
+                n.end_due = !send(links, port, Message::Finish(Finish { frame: self.frames_ended }));
+            }
         }
         self.send_rays(links, &mut send);
         while let Some((port, msg)) = self.control.front().cloned() {
@@ -84,7 +89,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             self.control.pop_front();
         }
         self.stream_slabs(links, &mut send);
-        if let Some(frame) = self.load_due {
+        if let Some(frame) = self.load_due.filter(|&f| f != FINAL_INTERVAL || self.settled()) {
             let report = LoadReport {
                 node: self.id,
                 interval: frame,
@@ -101,6 +106,12 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 self.load_due = None;
             }
         }
+    }
+
+    /// Whether nothing of the frame is still under way: no slide, and no
+    /// note or reply still to go ahead of the final load report.
+    fn settled(&self) -> bool {
+        self.control.is_empty() && !self.slide.busy(Side::Lo) && !self.slide.busy(Side::Hi)
     }
 
     /// Says hello on every cabled neighbour port once, and tells the host who
@@ -170,8 +181,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             // Whether the port can take it, before the ray is copied out.
             let Some(port) = self.pool.leaves_by(i) else { continue };
             // A ray on a grant needs no reply, so it does not wait for one.
+            let granted = self.holds_grant(port);
             let neighbour = self.ports.get(port.index());
-            let granted = neighbour.is_some_and(|n| n.grants_held > 0);
             let waiting =
                 !granted && neighbour.is_some_and(|n| usize::from(n.outstanding) >= MAX_OUTSTANDING);
             let Some(port_full) = full.get_mut(port.index()).filter(|f| !**f) else { continue };

@@ -1,0 +1,92 @@
+//! A sequence of frames on one array: the scene sent once, a start per
+//! frame, and the subregions carried from frame to frame.
+//!
+//! Each node keeps its subregion and the spheres in it when a frame ends,
+//! with its boundaries where sliding left them. The next frame starts there
+//! ([`FrameStart::Carried`]), so boundaries follow the work as it moves and
+//! no frame pays for a preview; or each frame is planned afresh
+//! ([`FrameStart::Planned`]: `--layout preview` fits each frame's own
+//! preview), and the scene is sent again whenever the planned subregions
+//! differ from those the nodes hold.
+
+use std::time::{Duration, Instant};
+
+use crate::error::HostError;
+use crate::plan::options::RenderOptions;
+use crate::plan::partition::Partition;
+use crate::plan::{Plan, initial_partition};
+use crate::results::RenderResult;
+use crate::results::history::after_slides;
+use crate::scene::Scene;
+use crate::scene::path::CameraPath;
+use crate::session::transport::Transport;
+
+/// Where each frame after the first starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrameStart {
+    /// Where the frame before ended: slid boundaries stay where they slid
+    /// (static ones never move).
+    Carried,
+    /// Planned afresh from the frame's own camera, as the options' layout
+    /// says.
+    Planned,
+}
+
+/// The frames to render and how.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sequence {
+    /// Number of frames.
+    pub frames: u32,
+    /// Where the camera is at each.
+    pub path: CameraPath,
+    /// Where each frame after the first starts.
+    pub start: FrameStart,
+}
+
+/// One frame of a sequence, as it ended.
+#[derive(Debug, Clone)]
+pub struct SequenceFrame<T> {
+    /// Frame number, from 0.
+    pub number: u32,
+    /// The frame's image and accounting (its partition: where it started).
+    pub result: RenderResult<T>,
+    /// Whether the scene was sent for this frame (the first, and planned
+    /// frames whose subregions changed).
+    pub loaded: bool,
+    /// Host time spent planning the frame (the preview, with `--layout preview`).
+    pub planning: Duration,
+}
+
+/// Renders `sequence` of `scene` on `transport`, handing each frame to
+/// `each` as soon as it is done (so a long sequence is never held in
+/// memory); stops at the first error, of a frame or of `each`.
+pub fn run<T: Transport>(
+    transport: &mut T,
+    scene: &Scene,
+    opts: &RenderOptions,
+    sequence: &Sequence,
+    mut each: impl FnMut(SequenceFrame<T::Time>) -> Result<(), HostError>,
+) -> Result<(), HostError> {
+    let capacity = transport.capacity();
+    // The subregions the nodes hold, once a scene is loaded.
+    let mut held: Option<Partition> = None;
+    for k in 0..sequence.frames {
+        let planning = Instant::now();
+        let at = sequence.path.frame(scene, k, sequence.frames)?;
+        let partition = match (&held, sequence.start) {
+            (Some(p), FrameStart::Carried) => p.clone(),
+            _ => initial_partition(&at, opts, capacity)?,
+        };
+        let plan = Plan::with_partition(&at, opts, partition, capacity)?;
+        let planning = planning.elapsed();
+        let loaded = held.as_ref() != Some(&plan.partition);
+        if loaded {
+            super::load(transport, &at, &plan);
+        }
+        let result = super::frame(transport, &plan, k)
+            .map_err(|e| if sequence.frames > 1 { e.context(&format!("frame {k}")) } else { e })?;
+        held = Some(after_slides(&plan.partition, &result.frame.slides));
+        each(SequenceFrame { number: k, result, loaded, planning })?;
+    }
+    Ok(())
+}

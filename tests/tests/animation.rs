@@ -1,0 +1,122 @@
+//! Sequences of frames on one array: every frame bit-identical to a
+//! single-frame render of the same camera, whether the boundaries are
+//! carried from frame to frame, refitted per frame or left even, on several
+//! arrays and under link faults; and nothing lost in any frame.
+
+use host_tool::plan::options::{Layout, PROPORTIONAL, RenderOptions};
+use host_tool::results::RenderResult;
+use host_tool::scene::Scene;
+use host_tool::scene::path::CameraPath;
+use host_tool::session::clock::Cycles;
+use host_tool::session::sequence::{self, FrameStart, Sequence, SequenceFrame};
+use host_tool::session::sim::render_sim;
+use link_proto::{Balance, SlidePolicy};
+use sim_board::{Board, Faults, SimConfig};
+
+fn scene() -> Scene {
+    let mut s = Scene::random(120, 27, 1.0, [16; 3]).unwrap();
+    for sp in s.spheres.iter_mut().step_by(4) {
+        sp.reflect = 0.5;
+    }
+    s
+}
+
+fn options(array: [u16; 3], balance: Option<Balance>, layout: Layout) -> RenderOptions {
+    let mut opts = RenderOptions::new(array);
+    opts.size = [32, 24];
+    opts.balance = balance;
+    opts.layout = layout;
+    opts
+}
+
+/// Slides often, so a few small frames move boundaries.
+fn sliding(policy: SlidePolicy) -> Option<Balance> {
+    Some(Balance { interval: 20_000, threshold: 65536, step: 1, policy })
+}
+
+/// Renders `sequence` on a fresh in-memory board, every frame checked complete.
+fn run(s: &Scene, opts: &RenderOptions, sequence: &Sequence) -> Vec<SequenceFrame<Cycles>> {
+    let mut board = Board::new(SimConfig { array: opts.array, ..opts.sim });
+    let mut frames = Vec::new();
+    sequence::run(&mut board, s, opts, sequence, |f| {
+        frames.push(f);
+        Ok(())
+    })
+    .unwrap_or_else(|e| panic!("{:?}: {e}", opts.array));
+    for f in &frames {
+        let r = &f.result.frame;
+        assert!(r.complete(), "frame {}: credit missing", f.number);
+        assert_eq!(r.rays_created, r.rays_terminated, "frame {}: rays lost", f.number);
+    }
+    frames
+}
+
+/// The single-frame render of frame `k`'s camera on one node, even and static.
+fn single(s: &Scene, path: CameraPath, k: u32, frames: u32) -> RenderResult<Cycles> {
+    let at = path.frame(s, k, frames).unwrap();
+    render_sim(&at, &options([1, 1, 1], None, Layout::Even)).unwrap()
+}
+
+const ORBIT: CameraPath = CameraPath::Orbit { degrees: 50.0 };
+
+#[test]
+fn every_frame_equals_its_single_frame_render_whatever_the_array_and_the_start() {
+    let s = scene();
+    let frames = 3;
+    let references: Vec<_> = (0..frames).map(|k| single(&s, ORBIT, k, frames)).collect();
+    let cases = [
+        ([2, 2, 2], sliding(PROPORTIONAL), Layout::Even, FrameStart::Carried),
+        ([3, 2, 1], sliding(SlidePolicy::Paper), Layout::Even, FrameStart::Carried),
+        ([4, 4, 4], sliding(PROPORTIONAL), Layout::Even, FrameStart::Carried),
+        ([2, 2, 2], None, Layout::Even, FrameStart::Carried),
+        ([2, 2, 2], None, Layout::Preview, FrameStart::Planned),
+        ([3, 2, 1], sliding(PROPORTIONAL), Layout::Even, FrameStart::Planned),
+    ];
+    let mut carried_slid = false;
+    for (array, balance, layout, start) in cases {
+        let opts = options(array, balance, layout);
+        let out = run(&s, &opts, &Sequence { frames, path: ORBIT, start });
+        assert_eq!(out.len(), frames as usize);
+        for (f, reference) in out.iter().zip(&references) {
+            assert_eq!(
+                f.result.frame.sums, reference.frame.sums,
+                "{array:?} {layout:?} {start:?}: frame {} differs from its single-frame render",
+                f.number
+            );
+        }
+        // The scene goes once unless a plan moved the subregions.
+        assert!(out[0].loaded);
+        if start == FrameStart::Carried {
+            assert!(out[1..].iter().all(|f| !f.loaded), "{array:?}: a carried frame was loaded again");
+            // A frame after slides starts from where they left the boundaries.
+            for pair in out.windows(2) {
+                if !pair[0].result.frame.slides.is_empty() {
+                    assert_ne!(pair[1].result.partition, pair[0].result.partition);
+                    carried_slid = true;
+                }
+            }
+        }
+        if balance.is_none() && start == FrameStart::Carried {
+            assert!(out.iter().all(|f| f.result.partition == out[0].result.partition));
+        }
+    }
+    assert!(carried_slid, "no case carried slid boundaries into a frame: the test would not see them");
+}
+
+#[test]
+fn frames_are_identical_under_link_faults() {
+    let s = scene();
+    let frames = 3;
+    for array in [[2, 2, 2], [4, 2, 2]] {
+        let clean = options(array, sliding(PROPORTIONAL), Layout::Even);
+        let mut faulty = clean;
+        faulty.sim.faults = Some(Faults { corrupt: 0.02, drop: 0.02, dup: 0.01, delay: 0.01, seed: 7 });
+        let sequence = Sequence { frames, path: ORBIT, start: FrameStart::Carried };
+        let a = run(&s, &clean, &sequence);
+        let b = run(&s, &faulty, &sequence);
+        assert!(b.iter().map(|f| f.result.links.retransmitted).sum::<u32>() > 0, "{array:?}: no fault bit");
+        for (x, y) in a.iter().zip(&b) {
+            assert_eq!(x.result.frame.sums, y.result.frame.sums, "{array:?}: frame {} differs", x.number);
+        }
+    }
+}
