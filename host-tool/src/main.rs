@@ -17,11 +17,14 @@ use host_tool::results::files::{
 use host_tool::results::output::{
     check_png_name, check_writable, png, refuse_overwrite, write_all_atomic, write_atomic,
 };
+use host_tool::results::sequence::{SequenceFiles, SequenceWriter};
 use host_tool::scene::Scene;
 use host_tool::scene::SceneFormat;
+use host_tool::scene::path::CameraPath;
 use host_tool::session::backend::{Backend, Rendered};
 use host_tool::session::clock::Clock;
 use host_tool::session::qemu::EmulatedBoard;
+use host_tool::session::sequence::{FrameStart, Sequence};
 use host_tool::{plan::direct, reference};
 use link_proto::{Balance, SlidePolicy};
 
@@ -78,6 +81,14 @@ enum BalanceMode {
     Static,
     /// The paper's sliding boundary surfaces.
     Slide,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum FrameStartChoice {
+    /// Where the frame before ended: slid boundaries stay where they slid.
+    Carried,
+    /// Afresh from each frame's camera, as --layout says (preview: a fit per frame).
+    Planned,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -255,6 +266,20 @@ struct RenderArgs {
     /// Replace files an earlier run left (a run refuses to by default).
     #[arg(long)]
     overwrite: bool,
+    /// Frames to render one after another on the same array, the scene sent once; a sequence
+    /// writes DIR/frame-NNNN.png, DIR/animation.png, DIR/frames.csv and DIR/frames.png.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    frames: u32,
+    /// Swing the camera about its look-at point by DEGREES over the sequence, around its up
+    /// direction [default: the scene's keyframes, or its camera standing still].
+    #[arg(long, value_name = "DEGREES")]
+    orbit: Option<f64>,
+    /// Where each frame after the first starts.
+    #[arg(long, value_enum, default_value = "carried")]
+    frame_start: FrameStartChoice,
+    /// Frames per second of DIR/animation.png.
+    #[arg(long, value_name = "FPS", default_value_t = 12)]
+    fps: u16,
 }
 
 #[derive(Args)]
@@ -372,6 +397,25 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         return Err(input("--ports and --order-ports are for --backend serial"));
     }
     let timeout = node_timeout(args.node_timeout)?;
+    let path = match args.orbit {
+        Some(d) if !d.is_finite() => {
+            return Err(input(format!("--orbit must be a number of degrees, got {d}")));
+        }
+        Some(degrees) => CameraPath::Orbit { degrees },
+        None => CameraPath::Keyframes,
+    };
+    if args.frames == 0 || args.fps == 0 {
+        return Err(input("--frames and --fps must be at least 1"));
+    }
+    if args.frames > 1 {
+        let start = match args.frame_start {
+            FrameStartChoice::Carried => FrameStart::Carried,
+            FrameStartChoice::Planned => FrameStart::Planned,
+        };
+        let sequence = Sequence { frames: args.frames, path, start };
+        return render_sequence(&args, &scene, &opts, &backend, timeout, &sequence);
+    }
+    let scene = path.frame(&scene, 0, 1)?;
     let in_dir = |name: &str| match args.out_dir.as_path() {
         dir if dir == std::path::Path::new(".") => PathBuf::from(name),
         dir => dir.join(name),
@@ -408,6 +452,60 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         Rendered::Sim(result) => write_run(&scene, &opts, &result, &from, &files),
         Rendered::Boards(result) => write_run(&scene, &opts, &result, &from, &files),
     }
+}
+
+/// Renders a sequence of frames into --out-dir, all files or none.
+fn render_sequence(
+    args: &RenderArgs,
+    scene: &Scene,
+    opts: &RenderOptions,
+    backend: &Backend,
+    timeout: std::time::Duration,
+    sequence: &Sequence,
+) -> Result<(), HostError> {
+    let single =
+        [&args.out, &args.plot, &args.loads, &args.summary, &args.load_history, &args.boundary_history];
+    if single.iter().any(|p| p.is_some()) {
+        return Err(input(
+            "--out, --plot, --loads, --summary, --load-history and --boundary-history name one frame's \
+             files; a sequence (--frames above 1) writes into --out-dir",
+        ));
+    }
+    let dir = args.out_dir.clone();
+    let files = SequenceFiles {
+        animation: dir.join("animation.png"),
+        table: dir.join("frames.csv"),
+        plot: dir.join("frames.png"),
+        dir: dir.clone(),
+    };
+    let all = files.all(sequence.frames);
+    let paths: Vec<&std::path::Path> = all.iter().map(PathBuf::as_path).collect();
+    if !args.overwrite {
+        refuse_overwrite(&paths)?;
+    }
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| HostError::Io(format!("cannot create --out-dir {}: {e}", dir.display())))?;
+    check_writable(&paths)?;
+    let started = std::time::Instant::now();
+    let mut writer = SequenceWriter::new(files.clone(), sequence.frames, opts.size, args.fps)?;
+    host_tool::session::backend::render_sequence(scene, opts, backend, timeout, sequence, &mut writer)?;
+    let unit = writer.unit();
+    let rows = writer.finish()?;
+    let total: u64 = rows.iter().map(|r| r.makespan).sum();
+    let worst = rows.iter().map(|r| r.imbalance).fold(0.0, f64::max);
+    eprintln!(
+        "rendered {} frames of {}x{} on {}x{}x{} nodes: makespans sum to {total} {unit}, imbalance at most {worst:.3}, \
+         {:.2} s -> {}",
+        rows.len(),
+        opts.size[0],
+        opts.size[1],
+        opts.array[0],
+        opts.array[1],
+        opts.array[2],
+        started.elapsed().as_secs_f64(),
+        files.animation.display()
+    );
+    Ok(())
 }
 
 /// Where `render` writes each of its outputs.

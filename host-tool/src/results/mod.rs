@@ -7,6 +7,7 @@ pub mod history;
 pub mod image;
 pub mod output;
 pub mod plot;
+pub mod sequence;
 
 use std::time::Duration;
 

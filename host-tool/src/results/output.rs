@@ -23,32 +23,69 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), HostError> {
 /// replace the device with a file. A symbolic link is followed, so the
 /// link stays and its target is replaced.
 pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<(), HostError> {
-    let mut staged = Vec::with_capacity(files.len());
-    let mut in_place = Vec::new();
+    let mut staging = Staging::default();
     for &(path, bytes) in files {
+        staging.add(path, bytes)?;
+    }
+    staging.commit()
+}
+
+/// Files written in full beside their targets, renamed into place together
+/// by [`Staging::commit`]; dropped uncommitted, it removes what it staged and
+/// the targets stay as they were (see [`write_all_atomic`]).
+#[derive(Debug, Default)]
+pub struct Staging {
+    /// (temporary file, target) of each regular file.
+    staged: Vec<(PathBuf, PathBuf)>,
+    /// Devices and FIFOs, written in place once the rest is staged.
+    in_place: Vec<(PathBuf, Vec<u8>)>,
+}
+
+impl Staging {
+    /// Stages `bytes` for `path`.
+    pub fn add(&mut self, path: &Path, bytes: &[u8]) -> Result<(), HostError> {
         let target = resolve(path);
         if is_special(&target) {
-            in_place.push((target, bytes));
-            continue;
+            self.in_place.push((target, bytes.to_vec()));
+        } else {
+            let tmp = stage(&target, bytes)?;
+            self.staged.push((tmp, target));
         }
-        match stage(&target, bytes) {
-            Ok(tmp) => staged.push((tmp, target)),
-            Err(e) => {
-                staged.iter().for_each(|(tmp, _)| drop(std::fs::remove_file(tmp)));
-                return Err(e);
-            }
+        Ok(())
+    }
+
+    /// Stages a file for `path` that `write` fills as it goes (a file too
+    /// large to hold in memory), kept open between calls by its caller; the
+    /// returned file must be complete and closed before [`Staging::commit`].
+    pub fn open(&mut self, path: &Path) -> Result<std::fs::File, HostError> {
+        let target = resolve(path);
+        let tmp = temporary(&target)?;
+        let file = std::fs::File::create(&tmp).map_err(|e| cannot_write(path, e))?;
+        self.staged.push((tmp, target));
+        Ok(file)
+    }
+
+    /// Renames every staged file into place, then writes the devices.
+    pub fn commit(mut self) -> Result<(), HostError> {
+        for (tmp, target) in std::mem::take(&mut self.staged) {
+            std::fs::rename(&tmp, &target).map_err(|e| {
+                let _ = std::fs::remove_file(&tmp);
+                cannot_write(&target, e)
+            })?;
+        }
+        for (target, bytes) in std::mem::take(&mut self.in_place) {
+            std::fs::write(&target, bytes).map_err(|e| cannot_write(&target, e))?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        for (tmp, _) in &self.staged {
+            let _ = std::fs::remove_file(tmp);
         }
     }
-    for (tmp, target) in staged {
-        std::fs::rename(&tmp, &target).map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            cannot_write(&target, e)
-        })?;
-    }
-    for (target, bytes) in in_place {
-        std::fs::write(&target, bytes).map_err(|e| cannot_write(&target, e))?;
-    }
-    Ok(())
 }
 
 /// Checks, before a long run, that each of `paths` can be written: its
@@ -90,10 +127,7 @@ fn is_special(path: &Path) -> bool {
 
 /// Writes `bytes` to a new temporary file beside `path`; returns its path.
 fn stage(path: &Path, bytes: &[u8]) -> Result<PathBuf, HostError> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name =
-        path.file_name().ok_or_else(|| HostError::Io(format!("{} is not a file path", path.display())))?;
-    let tmp = dir.join(format!(".{}.tmp-{}", name.to_string_lossy(), std::process::id()));
+    let tmp = temporary(path)?;
     let written = std::fs::File::create(&tmp).and_then(|mut f| {
         f.write_all(bytes)?;
         f.sync_all()
@@ -105,6 +139,14 @@ fn stage(path: &Path, bytes: &[u8]) -> Result<PathBuf, HostError> {
             Err(cannot_write(path, e))
         }
     }
+}
+
+/// The temporary file's name beside `path`.
+fn temporary(path: &Path) -> Result<PathBuf, HostError> {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name =
+        path.file_name().ok_or_else(|| HostError::Io(format!("{} is not a file path", path.display())))?;
+    Ok(dir.join(format!(".{}.tmp-{}", name.to_string_lossy(), std::process::id())))
 }
 
 fn cannot_write(path: &Path, e: std::io::Error) -> HostError {

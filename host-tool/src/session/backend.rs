@@ -10,9 +10,11 @@ use crate::results::RenderResult;
 use crate::scene::Scene;
 use crate::session::clock::{Cycles, HostMicros};
 use crate::session::qemu::{EmulatedBoard, Launch, QemuArray};
+use crate::session::sequence::{self, FrameSink, Sequence};
 use crate::session::serial::SerialArray;
 use crate::session::sim::render_sim;
 use crate::session::transport::Transport;
+use sim_board::{Board, SimConfig};
 
 /// What carries the frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,20 +65,13 @@ pub fn render(
     backend: &Backend,
     node_timeout: Duration,
 ) -> Result<Rendered, HostError> {
-    let nodes: usize = opts.array.iter().map(|&n| usize::from(n)).product();
     match backend {
         Backend::Sim => render_sim(scene, opts).map(Rendered::Sim),
         Backend::Qemu { board, firmware } => {
             render_qemu(scene, opts, *board, firmware, node_timeout).map(Rendered::Boards)
         }
-        Backend::Serial { ports, .. } if ports.len() != nodes => Err(input(format!(
-            "--ports lists {} devices; the {}x{}x{} array has {nodes} nodes",
-            ports.len(),
-            opts.array[0],
-            opts.array[1],
-            opts.array[2]
-        ))),
         Backend::Serial { ports, order_ports } => {
+            check_port_count(opts, ports)?;
             render_serial(scene, opts, ports, *order_ports, node_timeout).map(Rendered::Boards)
         }
     }
@@ -90,11 +85,23 @@ fn render_qemu(
     firmware: &std::path::Path,
     node_timeout: Duration,
 ) -> Result<RenderResult<HostMicros>, HostError> {
+    on_qemu(scene, opts, board, firmware, |ptys| render_serial(scene, opts, ptys, false, node_timeout))
+}
+
+/// Runs `job` on the ptys of an array of emulated `board`s running
+/// `firmware`, and stops the emulators.
+fn on_qemu<R>(
+    scene: &Scene,
+    opts: &RenderOptions,
+    board: EmulatedBoard,
+    firmware: &std::path::Path,
+    job: impl FnOnce(&[String]) -> Result<R, HostError>,
+) -> Result<R, HostError> {
     // Check the scene before starting the emulators.
     initial_partition(scene, opts, sim_board::SimNode::capacity())?;
     let how = Launch { faults: opts.sim.faults, ..Launch::default() };
     let mut qemu = QemuArray::launch_with(board, opts.array, firmware, how)?;
-    let result = render_serial(scene, opts, &qemu.ptys, false, node_timeout);
+    let result = job(&qemu.ptys);
     let last_words = qemu.last_words();
     drop(qemu);
     // A firmware that panicked or faulted said where, on its emulator's output.
@@ -114,6 +121,20 @@ pub fn render_serial(
     order_ports: bool,
     node_timeout: Duration,
 ) -> Result<RenderResult<HostMicros>, HostError> {
+    let mut array = open_serial(opts, ports, order_ports, node_timeout)?;
+    // Fitted to what the boards can hold, known once they have said hello.
+    let plan = Plan::new(scene, opts, array.capacity())?;
+    crate::session::run(&mut array, scene, &plan)
+}
+
+/// Opens the boards behind `ports`, hears their hellos and checks their
+/// cabling against `opts.array`.
+fn open_serial(
+    opts: &RenderOptions,
+    ports: &[String],
+    order_ports: bool,
+    node_timeout: Duration,
+) -> Result<SerialArray, HostError> {
     let names = (0..opts.array.iter().map(|&n| usize::from(n)).product())
         .map(|i| {
             let c = node_fw::wiring::coord_of(i, opts.array);
@@ -128,7 +149,48 @@ pub fn render_serial(
         eprintln!("devices in array order: --ports {}", ordered.join(","));
     }
     array.check_cabling(opts.array)?;
-    // Fitted to what the boards can hold, known once they have said hello.
-    let plan = Plan::new(scene, opts, array.capacity())?;
-    crate::session::run(&mut array, scene, &plan)
+    Ok(array)
+}
+
+/// Renders `sequence` of `scene` on `backend`, each frame to `sink` as it is done.
+pub fn render_sequence(
+    scene: &Scene,
+    opts: &RenderOptions,
+    backend: &Backend,
+    node_timeout: Duration,
+    sequence: &Sequence,
+    sink: &mut impl FrameSink,
+) -> Result<(), HostError> {
+    let mut on_boards = |ports: &[String], order_ports: bool| {
+        let mut array = open_serial(opts, ports, order_ports, node_timeout)?;
+        sequence::run(&mut array, scene, opts, sequence, |f| sink.take(f))
+    };
+    match backend {
+        Backend::Sim => {
+            let mut board = Board::new(SimConfig { array: opts.array, ..opts.sim });
+            sequence::run(&mut board, scene, opts, sequence, |f| sink.take(f))
+        }
+        Backend::Qemu { board, firmware } => {
+            on_qemu(scene, opts, *board, firmware, |ptys| on_boards(ptys, false))
+        }
+        Backend::Serial { ports, order_ports } => {
+            check_port_count(opts, ports)?;
+            on_boards(ports, *order_ports)
+        }
+    }
+}
+
+/// Refuses a list of serial devices that is not one per node.
+fn check_port_count(opts: &RenderOptions, ports: &[String]) -> Result<(), HostError> {
+    let nodes: usize = opts.array.iter().map(|&n| usize::from(n)).product();
+    if ports.len() == nodes {
+        return Ok(());
+    }
+    Err(input(format!(
+        "--ports lists {} devices; the {}x{}x{} array has {nodes} nodes",
+        ports.len(),
+        opts.array[0],
+        opts.array[1],
+        opts.array[2]
+    )))
 }

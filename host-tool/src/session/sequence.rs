@@ -57,6 +57,13 @@ pub struct SequenceFrame<T> {
     pub planning: Duration,
 }
 
+/// What takes each frame of a sequence as it is done: generic over the
+/// transport's clock, so one sink serves every backend.
+pub trait FrameSink {
+    /// Takes frame `f`; an error stops the sequence.
+    fn take<T: crate::session::clock::Clock>(&mut self, f: SequenceFrame<T>) -> Result<(), HostError>;
+}
+
 /// Renders `sequence` of `scene` on `transport`, handing each frame to
 /// `each` as soon as it is done (so a long sequence is never held in
 /// memory); stops at the first error, of a frame or of `each`.
