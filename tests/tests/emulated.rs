@@ -364,3 +364,51 @@ fn emulated_boards_under_link_faults_render_the_clean_image() {
     // The faults happened: the host's channels saw damaged frames and resent.
     assert!(faulty.links.corrupted > 0 && faulty.links.retransmitted > 0, "{:?}", faulty.links);
 }
+
+/// A sequence on emulated boards: the scene sent once, three orbiting frames
+/// with the boundaries carried (sliding), each frame's image the in-memory
+/// board's single-frame render of its camera.
+#[test]
+fn an_emulated_sequence_matches_single_frames() {
+    use host_tool::scene::path::CameraPath;
+    use host_tool::session::clock::Clock;
+    use host_tool::session::sequence::{FrameSink, FrameStart, Sequence, SequenceFrame};
+
+    /// Keeps each frame's sums and whether the scene was sent for it.
+    #[derive(Default)]
+    struct Kept(Vec<(Vec<[u64; 3]>, bool, usize)>);
+    impl FrameSink for Kept {
+        fn take<T: Clock>(&mut self, f: SequenceFrame<T>) -> Result<(), HostError> {
+            let r = &f.result.frame;
+            assert_eq!(r.rays_created, r.rays_terminated, "frame {}: every ray accounted for", f.number);
+            self.0.push((r.sums.clone(), f.loaded, r.slides.len()));
+            Ok(())
+        }
+    }
+
+    let _one = one_array();
+    let board = EmulatedBoard::Mps2An385;
+    let backend = Backend::Qemu { board, firmware: firmware(board) };
+    let s = scene();
+    let opts = options(Some(SLIDING));
+    let path = CameraPath::Orbit { degrees: 60.0 };
+    let sequence = Sequence { frames: 3, path, start: FrameStart::Carried };
+    let mut kept = Kept::default();
+    host_tool::session::backend::render_sequence(
+        &s,
+        &opts,
+        &backend,
+        Duration::from_secs(30),
+        &sequence,
+        &mut kept,
+    )
+    .unwrap_or_else(|e| panic!("sequence: {e}"));
+    assert_eq!(kept.0.len(), 3);
+    for (k, (sums, loaded, slides)) in kept.0.iter().enumerate() {
+        let at = path.frame(&s, k as u32, 3).expect("frame scene");
+        let single = render_sim(&at, &options(None)).expect("in-memory render");
+        assert!(*sums == single.frame.sums, "frame {k} differs from its single-frame render");
+        assert_eq!(*loaded, k == 0, "frame {k}: the scene is sent once");
+        eprintln!("emulated sequence frame {k}: {slides} slides");
+    }
+}
