@@ -67,6 +67,9 @@ cargo run --release --locked -p lab -- bench scaling --quick --out target/scalin
 step "error against run time over the settings, reduced (lab report tradeoff --quick)"
 cargo run --release --locked -p lab -- report tradeoff --quick --out target/tradeoff-quick
 
+step "balancing modes over a camera orbit, reduced (lab bench animation --quick)"
+cargo run --release --locked -p lab -- bench animation --quick --out target/animation-quick
+
 step "tests"
 cargo test --workspace --locked
 

@@ -228,3 +228,27 @@ pub fn parse_pair(s: &str) -> Result<[u16; 2], String> {
 fn num(s: &str) -> Result<u16, String> {
     s.trim().parse::<u16>().map_err(|_| format!("'{s}' is not a whole number from 0 to 65535"))
 }
+
+/// Parses `--faults`: per-frame probabilities `corrupt=P,drop=P,dup=P,delay=P` and `seed=N`.
+pub fn parse_faults(s: &str) -> Result<sim_board::Faults, String> {
+    let mut f = sim_board::Faults { seed: 1, ..Default::default() };
+    for part in s.split(',').filter(|p| !p.is_empty()) {
+        let (key, value) = part.split_once('=').ok_or_else(|| format!("expected key=value in '{part}'"))?;
+        if key == "seed" {
+            f.seed = value.parse().map_err(|_| format!("seed '{value}' is not a whole number"))?;
+            continue;
+        }
+        let p: f64 = value.parse().map_err(|_| format!("'{value}' is not a number"))?;
+        if !(0.0..1.0).contains(&p) {
+            return Err(format!("{key}={value}: a probability in [0, 1)"));
+        }
+        match key {
+            "corrupt" => f.corrupt = p,
+            "drop" => f.drop = p,
+            "dup" => f.dup = p,
+            "delay" => f.delay = p,
+            _ => return Err(format!("unknown fault '{key}' (corrupt, drop, dup, delay, seed)")),
+        }
+    }
+    Ok(f)
+}

@@ -5,7 +5,8 @@ use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use host_tool::args::{
-    LinkArgs, SceneArgs, load_scene, load_scene_for, node_timeout, parse_triple, scene_source, usage_error,
+    LinkArgs, SceneArgs, load_scene, load_scene_for, node_timeout, parse_faults, parse_triple, scene_source,
+    usage_error,
 };
 use host_tool::compare::compare;
 use host_tool::error::{HostError, input};
@@ -583,29 +584,6 @@ fn compare_cmd(args: SceneArgs) -> Result<(), HostError> {
     let text = serde_json::to_string_pretty(&c).map_err(|e| HostError::Io(e.to_string()))?;
     println!("{text}");
     Ok(())
-}
-
-fn parse_faults(s: &str) -> Result<sim_board::Faults, String> {
-    let mut f = sim_board::Faults { seed: 1, ..Default::default() };
-    for part in s.split(',').filter(|p| !p.is_empty()) {
-        let (key, value) = part.split_once('=').ok_or_else(|| format!("expected key=value in '{part}'"))?;
-        if key == "seed" {
-            f.seed = value.parse().map_err(|_| format!("seed '{value}' is not a whole number"))?;
-            continue;
-        }
-        let p: f64 = value.parse().map_err(|_| format!("'{value}' is not a number"))?;
-        if !(0.0..1.0).contains(&p) {
-            return Err(format!("{key}={value}: a probability in [0, 1)"));
-        }
-        match key {
-            "corrupt" => f.corrupt = p,
-            "drop" => f.drop = p,
-            "dup" => f.dup = p,
-            "delay" => f.delay = p,
-            _ => return Err(format!("unknown fault '{key}' (corrupt, drop, dup, delay, seed)")),
-        }
-    }
-    Ok(f)
 }
 
 fn parse_restart(s: &str) -> Result<(u16, u64), String> {

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use host_tool::args::{LinkArgs, SceneArgs, load_scene, parse_triple, usage_error};
+use host_tool::args::{LinkArgs, SceneArgs, load_scene, parse_faults, parse_triple, usage_error};
 use host_tool::error::{HostError, input};
 use host_tool::plan::direct;
 use host_tool::plan::options::RenderOptions;
@@ -34,6 +34,52 @@ enum Command {
     Report(ReportCommand),
     /// The tables of docs/results.md, made anew (about a minute).
     Results(ResultsArgs),
+    /// A long orbit on one array under link faults against the same on clean
+    /// links: every frame identical, nothing lost, the host's memory flat.
+    /// Exits 30 if a frame differs or loses a ray.
+    Soak(SoakArgs),
+}
+
+#[derive(Args)]
+struct SoakArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Frames of the orbit (each run).
+    #[arg(long, value_name = "N", default_value_t = 200)]
+    frames: u32,
+    /// Array of nodes.
+    #[arg(long, value_name = "XxYxZ", value_parser = parse_triple, default_value = "4x4x4")]
+    array: [u16; 3],
+    /// Faults on every link (per-frame probabilities).
+    #[arg(long, value_name = "corrupt=P,drop=P,...", value_parser = parse_faults,
+          default_value = "corrupt=0.01,drop=0.01,seed=1")]
+    faults: sim_board::Faults,
+}
+
+#[derive(Args)]
+struct AnimationArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    links: LinkArgs,
+    /// Arrays, comma-separated.
+    #[arg(long, value_name = "XxYxZ,...", default_value = "4x4x4,8x8x8")]
+    arrays: String,
+    /// Frames of the orbit.
+    #[arg(long, value_name = "N", default_value_t = 60)]
+    frames: u32,
+    /// Degrees the camera turns over the sequence.
+    #[arg(long, value_name = "DEGREES", default_value_t = 360.0)]
+    orbit: f64,
+    /// The first frame of the steady state.
+    #[arg(long, value_name = "K", default_value_t = 10)]
+    steady_from: u32,
+    /// Output directory.
+    #[arg(long, value_name = "DIR", default_value = "animation")]
+    out: PathBuf,
+    /// Eight 64x64 frames on 2x2x2 (for CI).
+    #[arg(long)]
+    quick: bool,
 }
 
 #[derive(Args)]
@@ -92,6 +138,10 @@ enum BenchCommand {
     Board(BoardBenchArgs),
     /// The paper's experiments (Figs. 7-10): CSV tables and PNG plots.
     Paper(PaperArgs),
+    /// A camera orbit as one sequence per balancing mode (the paper's rule and
+    /// the proportional policy carried, a preview fit per frame, static):
+    /// imbalance and makespan per frame, settling, the sequence's cost.
+    Animation(AnimationArgs),
     /// Efficiency E = T(1) / (S T(S)) and where the busy cycles go, for
     /// S = 1, 8, 27, 64, 216, 512 on the in-memory board: a table, CSV and PNG.
     Scaling(ScalingArgs),
@@ -155,6 +205,8 @@ fn main() -> ExitCode {
             .and_then(|()| if pass { Ok(()) } else { Err(HostError::Node("a stiff case failed".into())) })
         }
         Command::Bench(BenchCommand::Scaling(args)) => bench_scaling(args),
+        Command::Bench(BenchCommand::Animation(args)) => bench_animation(args),
+        Command::Soak(args) => soak(args),
         Command::Results(args) => return results(&args),
         Command::Bench(BenchCommand::Paper(args)) => {
             let cfg =
@@ -259,13 +311,59 @@ fn bench_board(args: BoardBenchArgs) -> Result<(), HostError> {
     Ok(())
 }
 
-fn bench_scaling(args: ScalingArgs) -> Result<(), HostError> {
-    let mut scene_args = args.scene.clone();
+/// The scene unless one is given: the paper's 1000 random spheres, seed 1986.
+fn paper_scene(args: &SceneArgs) -> SceneArgs {
+    let mut scene_args = args.clone();
     if scene_args.scene.is_none() && scene_args.spheres.is_none() {
-        // The scene: the paper's 1000 random spheres, seed 1986.
         scene_args.spheres = Some(1000);
         scene_args.seed = scene_args.seed.or(Some(1986));
     }
+    scene_args
+}
+
+fn bench_animation(args: AnimationArgs) -> Result<(), HostError> {
+    let mut scene_args = paper_scene(&args.scene);
+    let mut arrays = args
+        .arrays
+        .split(',')
+        .map(|a| parse_triple(a.trim()).map_err(|e| input(format!("--arrays: {e}"))))
+        .collect::<Result<Vec<_>, _>>()?;
+    let (mut frames, mut steady_from) = (args.frames, args.steady_from);
+    if args.quick {
+        (arrays, frames, steady_from, scene_args.size) = (vec![[2, 2, 2]], 8, 4, [64, 64]);
+    }
+    if frames <= steady_from || !args.orbit.is_finite() {
+        return Err(input("--frames must exceed --steady-from, and --orbit be a number of degrees"));
+    }
+    let scene = load_scene(&scene_args)?;
+    let mut base = RenderOptions::new([1, 1, 1]);
+    base.size = scene_args.size;
+    args.links.apply(&mut base)?;
+    let cfg = lab::animation::AnimationConfig { arrays, frames, degrees: args.orbit, steady_from, base };
+    let table = lab::animation::bench_animation(&scene, &cfg, &args.out)?;
+    print!("{table}");
+    Ok(())
+}
+
+fn soak(args: SoakArgs) -> Result<(), HostError> {
+    if args.frames < 20 {
+        return Err(input("--frames must be at least 20 (memory is read at frame 20 and the last)"));
+    }
+    let scene_args = paper_scene(&args.scene);
+    let scene = load_scene(&scene_args)?;
+    let mut opts = RenderOptions::new(args.array);
+    opts.size = scene_args.size;
+    let report = lab::soak::soak(&scene, &opts, args.frames, args.faults, &[20, args.frames])?;
+    print!("{}", report.text());
+    if report.passed() {
+        Ok(())
+    } else {
+        Err(HostError::Node("the soak found a frame that differs or lost a ray".into()))
+    }
+}
+
+fn bench_scaling(args: ScalingArgs) -> Result<(), HostError> {
+    let scene_args = paper_scene(&args.scene);
     let scene = load_scene(&scene_args)?;
     let mut base = RenderOptions::new([1, 1, 1]);
     base.size = scene_args.size;

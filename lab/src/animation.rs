@@ -1,0 +1,327 @@
+//! `bench animation`: a camera orbit rendered as one sequence per balancing
+//! mode, on the in-memory board: how even the frames are once the
+//! boundaries have settled, what the whole sequence costs, and how many
+//! frames sliding needs to get there from the even partition.
+//!
+//! The modes: the paper's rule and the proportional policy, each carrying
+//! its boundaries from frame to frame; a static partition fitted to each
+//! frame's own preview (the preview rendered on the host every frame, the
+//! scene sent again whenever the fit moves a boundary); and static even
+//! boxes.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use rayon::prelude::*;
+
+use host_tool::error::HostError;
+use host_tool::plan::options::{Layout, PROPORTIONAL, RenderOptions};
+use host_tool::results::RenderResult;
+use host_tool::results::output::write_all_atomic;
+use host_tool::results::plot::{Chart, Series, Style, png};
+use host_tool::results::sequence::FrameRow;
+use host_tool::scene::Scene;
+use host_tool::scene::path::CameraPath;
+use host_tool::session::sequence::{self, FrameStart, Sequence};
+use link_proto::{Balance, SlidePolicy};
+use sim_board::{Board, SimConfig};
+
+/// How boundaries are set over a sequence.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// The paper's rule (one cube a step), carried from frame to frame.
+    Paper,
+    /// The proportional policy (render's default), carried.
+    Proportional,
+    /// Static boxes fitted to each frame's preview.
+    PreviewPerFrame,
+    /// Static even boxes.
+    Static,
+}
+
+impl Mode {
+    /// Every mode, in table order.
+    pub const ALL: [Mode; 4] = [Mode::Paper, Mode::Proportional, Mode::PreviewPerFrame, Mode::Static];
+
+    /// The name tables and plots give it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Paper => "paper, carried",
+            Self::Proportional => "proportional, carried",
+            Self::PreviewPerFrame => "preview fit per frame",
+            Self::Static => "static, even",
+        }
+    }
+
+    /// `base` set up for this mode, and where each frame starts.
+    fn options(self, base: &RenderOptions) -> (RenderOptions, FrameStart) {
+        let mut o = *base;
+        let slide = |policy| Some(Balance { policy, ..base.balance.unwrap_or(DEFAULT_BALANCE) });
+        match self {
+            Self::Paper => (RenderOptions { balance: slide(SlidePolicy::Paper), ..o }, FrameStart::Carried),
+            Self::Proportional => (RenderOptions { balance: slide(PROPORTIONAL), ..o }, FrameStart::Carried),
+            Self::PreviewPerFrame => {
+                o.balance = None;
+                o.layout = Layout::Preview;
+                (o, FrameStart::Planned)
+            }
+            Self::Static => {
+                o.balance = None;
+                o.layout = Layout::Even;
+                (o, FrameStart::Carried)
+            }
+        }
+    }
+}
+
+/// `render`'s sliding: its interval and threshold.
+const DEFAULT_BALANCE: Balance = host_tool::plan::options::DEFAULT_BALANCE;
+
+/// What to run.
+#[derive(Debug, Clone)]
+pub struct AnimationConfig {
+    /// Arrays, each with every mode.
+    pub arrays: Vec<[u16; 3]>,
+    /// Frames of the orbit.
+    pub frames: u32,
+    /// Degrees the camera turns over the sequence.
+    pub degrees: f64,
+    /// Frames from this one on are the steady state.
+    pub steady_from: u32,
+    /// Image, links and the rest (array, balance and layout set per run).
+    pub base: RenderOptions,
+}
+
+/// One sequence's figures.
+#[derive(Debug, Clone)]
+pub struct AnimationRun {
+    /// The array.
+    pub array: [u16; 3],
+    /// The mode.
+    pub mode: Mode,
+    /// One row per frame.
+    pub frames: Vec<FrameRow>,
+    /// Per frame, the least imbalance boundaries sliding along the driving
+    /// axis could reach with the frame's loads ([`row_bound`]).
+    pub row_bounds: Vec<f64>,
+}
+
+impl AnimationRun {
+    fn steady(&self, from: u32) -> impl Iterator<Item = &FrameRow> {
+        self.frames.iter().filter(move |r| r.frame >= from)
+    }
+
+    /// Mean imbalance over the steady frames.
+    pub fn steady_imbalance(&self, from: u32) -> f64 {
+        let (n, sum) = self.steady(from).fold((0, 0.0), |(n, s), r| (n + 1, s + r.imbalance));
+        sum / f64::from(n.max(1))
+    }
+
+    /// Mean of [`row_bound`] over the steady frames.
+    pub fn steady_row_bound(&self, from: u32) -> f64 {
+        let steady = self.frames.iter().zip(&self.row_bounds).filter(|(r, _)| r.frame >= from);
+        let (n, sum) = steady.fold((0, 0.0), |(n, s), (_, b)| (n + 1, s + b));
+        sum / f64::from(n.max(1))
+    }
+
+    /// Mean makespan over the steady frames.
+    pub fn steady_makespan(&self, from: u32) -> f64 {
+        let (n, sum) = self.steady(from).fold((0, 0.0), |(n, s), r| (n + 1, s + r.makespan as f64));
+        sum / f64::from(n.max(1))
+    }
+
+    /// All frames' makespans.
+    pub fn total_makespan(&self) -> u64 {
+        self.frames.iter().map(|r| r.makespan).sum()
+    }
+
+    /// Host seconds spent planning (the previews of a per-frame fit).
+    pub fn planning_s(&self) -> f64 {
+        self.frames.iter().map(|r| r.planning_ms).sum::<f64>() / 1e3
+    }
+
+    /// The first frame from which the imbalance stays within 5% of the
+    /// steady mean.
+    pub fn settled_at(&self, from: u32) -> Option<u32> {
+        let bound = 1.05 * self.steady_imbalance(from);
+        let last_above = self.frames.iter().rposition(|r| r.imbalance > bound);
+        match last_above {
+            None => self.frames.first().map(|r| r.frame),
+            Some(i) => self.frames.get(i + 1).map(|r| r.frame),
+        }
+    }
+}
+
+/// Runs every array and mode (two at a time); writes `animation.csv`,
+/// `animation.md` and `animation.png` to `out` (all or none) and returns
+/// the Markdown table.
+pub fn bench_animation(scene: &Scene, cfg: &AnimationConfig, out: &Path) -> Result<String, HostError> {
+    std::fs::create_dir_all(out)
+        .map_err(|e| HostError::Io(format!("cannot create {}: {e}", out.display())))?;
+    let files = ["animation.csv", "animation.md", "animation.png"].map(|f| out.join(f));
+    host_tool::results::output::check_writable(&files.iter().map(|p| p.as_path()).collect::<Vec<_>>())?;
+    let runs = runs(scene, cfg)?;
+    let table = markdown(cfg, &runs);
+    let plot = chart(cfg, &runs)?;
+    let [csv_path, md_path, png_path] = &files;
+    write_all_atomic(&[(csv_path, csv(&runs).as_bytes()), (md_path, table.as_bytes()), (png_path, &plot)])?;
+    Ok(table)
+}
+
+/// Renders every array and mode of `cfg`.
+pub fn runs(scene: &Scene, cfg: &AnimationConfig) -> Result<Vec<AnimationRun>, HostError> {
+    let jobs: Vec<([u16; 3], Mode)> =
+        cfg.arrays.iter().flat_map(|&a| Mode::ALL.into_iter().map(move |m| (a, m))).collect();
+    jobs.into_par_iter().map(|(array, mode)| run(scene, cfg, array, mode)).collect()
+}
+
+fn run(scene: &Scene, cfg: &AnimationConfig, array: [u16; 3], mode: Mode) -> Result<AnimationRun, HostError> {
+    let (mut opts, start) = mode.options(&cfg.base);
+    opts.array = array;
+    opts.sim.array = array;
+    let sequence = Sequence { frames: cfg.frames, path: CameraPath::Orbit { degrees: cfg.degrees }, start };
+    let mut board = Board::new(SimConfig { array, ..opts.sim });
+    let (mut frames, mut row_bounds) = (Vec::new(), Vec::new());
+    let started = std::time::Instant::now();
+    sequence::run(&mut board, scene, &opts, &sequence, |f| {
+        frames.push(FrameRow::of(&f));
+        row_bounds.push(row_bound(&f.result));
+        Ok(())
+    })
+    .map_err(|e| e.context(&format!("{}x{}x{} {}", array[0], array[1], array[2], mode.name())))?;
+    let run = AnimationRun { array, mode, frames, row_bounds };
+    eprintln!(
+        "{}x{}x{} {:24} steady imbalance {:.3}, makespans {:.3e}, {:.0} s",
+        array[0],
+        array[1],
+        array[2],
+        mode.name(),
+        run.steady_imbalance(cfg.steady_from),
+        run.total_makespan() as f64,
+        started.elapsed().as_secs_f64()
+    );
+    Ok(run)
+}
+
+/// The least imbalance that sliding boundaries along the driving axis can
+/// reach with a frame's loads: sliding moves work only within a row of
+/// nodes along that axis, so at best each node of a row does the row's mean,
+/// and the busiest row's mean over all nodes' mean bounds the imbalance from
+/// below (for work that splits finely and costs the same wherever it runs).
+pub fn row_bound<T>(r: &RenderResult<T>) -> f64 {
+    let p = &r.partition;
+    let d = usize::from(p.driving_axis);
+    let per_row = f64::from(p.array[d]);
+    let mut rows = vec![0.0; p.len() / usize::from(p.array[d].max(1))];
+    let mut total = 0.0;
+    for (id, load) in r.frame.loads.iter().enumerate() {
+        let running = load.map_or(0.0, |l| l.running as f64);
+        if let Some(row) = rows.get_mut(p.row_of(p.coord(id))) {
+            *row += running;
+        }
+        total += running;
+    }
+    let mean = total / p.len().max(1) as f64;
+    rows.iter().map(|row| row / per_row).fold(0.0, f64::max) / mean.max(f64::MIN_POSITIVE)
+}
+
+fn csv(runs: &[AnimationRun]) -> String {
+    let mut s =
+        String::from("array,mode,frame,makespan,imbalance,row_bound,slides,messages,loaded,planning_ms\n");
+    for run in runs {
+        let [x, y, z] = run.array;
+        for (r, bound) in run.frames.iter().zip(&run.row_bounds) {
+            let _ = writeln!(
+                s,
+                "{x}x{y}x{z},{},{},{},{:.4},{bound:.4},{},{},{},{:.1}",
+                run.mode.name(),
+                r.frame,
+                r.makespan,
+                r.imbalance,
+                r.slides,
+                r.messages.unwrap_or(0),
+                u8::from(r.loaded),
+                r.planning_ms
+            );
+        }
+    }
+    s
+}
+
+/// The summary per array and mode, headed by what ran.
+pub fn markdown(cfg: &AnimationConfig, runs: &[AnimationRun]) -> String {
+    let o = &cfg.base;
+    let from = cfg.steady_from;
+    let mut s = format!(
+        "An orbit of {} degrees in {} frames, {}x{}, `{}` links, on the in-memory board. Steady state: \
+         frames {from} to {}. Imbalance: the busiest node's running time over the mean, per frame. \
+         Row bound: the least imbalance sliding along the driving axis could reach with the \
+         frame's loads (each row of nodes along it at its own mean). Settled: the first frame \
+         from which the imbalance stays within 5% of its steady mean. Planning: host seconds \
+         (the preview fit renders a preview per frame).\n\n",
+        cfg.degrees,
+        cfg.frames,
+        o.size[0],
+        o.size[1],
+        o.link_preset.name(),
+        cfg.frames.saturating_sub(1),
+    );
+    s.push_str(
+        "| array | mode | steady imbalance | worst steady | row bound | steady makespan (cycles) | all frames (cycles) | settled at frame | slides | planning (s) |\n",
+    );
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
+    for run in runs {
+        let [x, y, z] = run.array;
+        let worst = run.steady(from).map(|r| r.imbalance).fold(0.0, f64::max);
+        let settled = match run.mode {
+            Mode::Paper | Mode::Proportional => run.settled_at(from).map_or("-".into(), |k| k.to_string()),
+            _ => "-".into(),
+        };
+        let _ = writeln!(
+            s,
+            "| {x}x{y}x{z} | {} | {:.3} | {worst:.3} | {:.3} | {:.3e} | {:.3e} | {settled} | {} | {:.1} |",
+            run.mode.name(),
+            run.steady_imbalance(from),
+            run.steady_row_bound(from),
+            run.steady_makespan(from),
+            run.total_makespan() as f64,
+            run.frames.iter().map(|r| r.slides).sum::<usize>(),
+            run.planning_s()
+        );
+    }
+    s
+}
+
+fn chart(cfg: &AnimationConfig, runs: &[AnimationRun]) -> Result<Vec<u8>, HostError> {
+    let panel = |array: [u16; 3], title: &str, y: &str, pick: fn(&FrameRow) -> f64| {
+        let series = runs
+            .iter()
+            .filter(|r| r.array == array)
+            .map(|r| Series {
+                name: r.mode.name().into(),
+                points: r.frames.iter().map(|f| (f64::from(f.frame), pick(f))).collect(),
+                style: Style::Line,
+            })
+            .collect();
+        let [x, y_, z] = array;
+        let chart = Chart {
+            title: format!("{title}, {x}x{y_}x{z}"),
+            x_label: "frame".into(),
+            y_label: y.into(),
+            log_x: false,
+            log_y: false,
+        };
+        (chart, series)
+    };
+    let panels: Vec<_> = cfg
+        .arrays
+        .iter()
+        .flat_map(|&a| {
+            [
+                panel(a, "Imbalance per frame", "busiest / mean running time", |r| r.imbalance),
+                panel(a, "Makespan per frame", "makespan (cycles)", |r| r.makespan as f64),
+            ]
+        })
+        .collect();
+    png(&panels, 900, 320)
+}
