@@ -420,3 +420,72 @@ fn a_scene_written_as_nff_renders_from_its_file() {
     assert!(String::from_utf8_lossy(&wrong.stderr).contains("written as .json or .nff"));
     assert!(!dir.join("s.txt").exists());
 }
+
+/// The frames of an animated PNG (its acTL chunk), or `None` for a still one.
+fn animation_frames(png: &[u8]) -> Option<u32> {
+    let mut i = 8;
+    while i + 12 <= png.len() {
+        let n = u32::from_be_bytes(png[i..i + 4].try_into().unwrap()) as usize;
+        if &png[i + 4..i + 8] == b"acTL" {
+            return Some(u32::from_be_bytes(png[i + 8..i + 12].try_into().unwrap()));
+        }
+        i += 12 + n;
+    }
+    None
+}
+
+#[test]
+fn a_sequence_writes_every_frame_the_animation_and_the_table() {
+    let scratch = scratch("sequence");
+    let dir = scratch.path();
+    let scene =
+        ["--spheres", "40", "--seed", "3", "--grid", "12x12x12", "--size", "24x16", "--array", "2x2x2"];
+    let out = host_tool(
+        dir,
+        &[&["render", "--frames", "3", "--orbit", "90", "--out-dir", "seq"][..], &scene].concat(),
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let seq = dir.join("seq");
+    for k in 0..3 {
+        let frame = image::open(seq.join(format!("frame-{k:04}.png"))).expect("frame").to_rgb8();
+        assert_eq!(frame.dimensions(), (24, 16));
+    }
+    let animation = std::fs::read(seq.join("animation.png")).unwrap();
+    assert_eq!(animation_frames(&animation), Some(3));
+    let table = std::fs::read_to_string(seq.join("frames.csv")).unwrap();
+    let rows: Vec<&str> = table.lines().filter(|l| !l.starts_with('#')).collect();
+    assert!(rows[0].starts_with("frame,makespan,imbalance,slides,messages"), "{table}");
+    assert_eq!(rows.len(), 4, "{table}");
+    // The scene goes with frame 0 only (`loaded` is the ninth column).
+    let loaded: Vec<&str> = rows[1..].iter().map(|r| r.split(',').nth(8).unwrap()).collect();
+    assert_eq!(loaded, ["1", "0", "0"]);
+    assert!(seq.join("frames.png").is_file());
+    // Frame 0 is the scene's own camera: the single-frame render's image, byte for byte.
+    let single = host_tool(dir, &[&["render", "--out-dir", "one"][..], &scene].concat());
+    assert!(single.status.success(), "{}", String::from_utf8_lossy(&single.stderr));
+    assert_eq!(
+        std::fs::read(seq.join("frame-0000.png")).unwrap(),
+        std::fs::read(dir.join("one/render.png")).unwrap()
+    );
+    // A second run refuses to replace the first's files, naming one.
+    let again = host_tool(dir, &[&["render", "--frames", "3", "--out-dir", "seq"][..], &scene].concat());
+    assert_eq!(again.status.code(), Some(17));
+    assert!(String::from_utf8_lossy(&again.stderr).contains("exists"));
+}
+
+#[test]
+fn a_sequence_refuses_single_frame_outputs_and_zero_frames() {
+    fails("zero-frames", &["render", "--frames", "0"], None, 17, "--frames");
+    fails("seq-out", &["render", "--frames", "2", "--out", "x.png"], None, 17, "--out-dir");
+    fails("seq-orbit", &["render", "--frames", "2", "--orbit", "inf"], None, 17, "--orbit");
+    let keys = r#"{"grid": [8, 8, 8], "spheres": [{"center": [4, 4, 4], "radius": 1}],
+        "keyframes": [{"frame": 4, "camera": {"eye": [4, 4, -9], "look_at": [4, 4, 4]}},
+                      {"frame": 2, "camera": {"eye": [4, 5, -9], "look_at": [4, 4, 4]}}]}"#;
+    fails(
+        "keys-order",
+        &["render", "--scene", "scene.json", "--frames", "2"],
+        Some(keys),
+        17,
+        "increasing frame order",
+    );
+}
