@@ -385,11 +385,13 @@ fn link_presets_change_time_not_the_image() {
         for (id, (busy, load)) in r.busy.iter().zip(&r.frame.loads).enumerate() {
             let (busy, load) = (busy.expect("the board sees its nodes"), load.expect("every node reported"));
             // The board also charges the last polls, which take `Finish` and
-            // send the final report and whatever else is still due: the
-            // report cannot count them (a few short messages of under 64
-            // bytes). A poll is charged at least one cycle.
+            // send the final report, and the end of the frame to and from each
+            // of a 2x2x2 node's three neighbours, and whatever else is still
+            // due: the report cannot count them (a few short messages of
+            // under 64 bytes). A poll is charged at least one cycle.
             let cost = sim_board::CostModel::default();
-            let finish = 4 * cost.short_message + 4 * 64 * opts_byte_cpu(preset, transfer);
+            let messages = 4 + 2 * 3;
+            let finish = messages * cost.short_message + messages * 64 * opts_byte_cpu(preset, transfer);
             let gap = busy.total() as i64 - load.running as i64;
             assert!(
                 (-(load.running as i64) / 1000..=finish as i64).contains(&gap),
