@@ -24,7 +24,6 @@ use host_tool::scene::Scene;
 use host_tool::scene::path::CameraPath;
 use host_tool::session::sequence::{self, FrameStart, Sequence};
 use link_proto::{Balance, SlidePolicy};
-use sim_board::{Board, SimConfig};
 
 /// How boundaries are set over a sequence.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -156,10 +155,7 @@ impl AnimationRun {
 /// `animation.md` and `animation.png` to `out` (all or none) and returns
 /// the Markdown table.
 pub fn bench_animation(scene: &Scene, cfg: &AnimationConfig, out: &Path) -> Result<String, HostError> {
-    std::fs::create_dir_all(out)
-        .map_err(|e| HostError::Io(format!("cannot create {}: {e}", out.display())))?;
-    let files = ["animation.csv", "animation.md", "animation.png"].map(|f| out.join(f));
-    host_tool::results::output::check_writable(&files.iter().map(|p| p.as_path()).collect::<Vec<_>>())?;
+    let files = crate::outputs(out, ["animation.csv", "animation.md", "animation.png"])?;
     let runs = runs(scene, cfg)?;
     let table = markdown(cfg, &runs);
     let plot = chart(cfg, &runs)?;
@@ -180,7 +176,7 @@ fn run(scene: &Scene, cfg: &AnimationConfig, array: [u16; 3], mode: Mode) -> Res
     opts.array = array;
     opts.sim.array = array;
     let sequence = Sequence { frames: cfg.frames, path: CameraPath::Orbit { degrees: cfg.degrees }, start };
-    let mut board = Board::new(SimConfig { array, ..opts.sim });
+    let mut board = host_tool::session::sim::board(&opts);
     let (mut frames, mut row_bounds) = (Vec::new(), Vec::new());
     let started = std::time::Instant::now();
     sequence::run(&mut board, scene, &opts, &sequence, |f| {

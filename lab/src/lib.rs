@@ -16,3 +16,18 @@ pub mod scaling;
 pub mod scenes;
 pub mod soak;
 pub mod tradeoff;
+
+use std::path::{Path, PathBuf};
+
+use host_tool::error::HostError;
+
+/// The paths of an experiment's `names` in `out`, checked before the
+/// experiment runs (the directory made, each file writable), so a long run
+/// never ends unable to write what it measured.
+pub fn outputs<const N: usize>(out: &Path, names: [&str; N]) -> Result<[PathBuf; N], HostError> {
+    std::fs::create_dir_all(out)
+        .map_err(|e| HostError::Io(format!("cannot create {}: {e}", out.display())))?;
+    let files = names.map(|f| out.join(f));
+    host_tool::results::output::check_writable(&files.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+    Ok(files)
+}

@@ -76,11 +76,7 @@ pub fn bench_scaling(scene: &Scene, cfg: &ScalingConfig, out: &Path) -> Result<S
     if cfg.sides.first() != Some(&1) {
         return Err(host_tool::error::input("bench scaling needs the one-node run first (side 1)"));
     }
-    // Before the runs, not after them.
-    std::fs::create_dir_all(out)
-        .map_err(|e| HostError::Io(format!("cannot create {}: {e}", out.display())))?;
-    let files = ["scaling.csv", "scaling.md", "scaling.png"].map(|f| out.join(f));
-    host_tool::results::output::check_writable(&files.iter().map(|p| p.as_path()).collect::<Vec<_>>())?;
+    let files = crate::outputs(out, ["scaling.csv", "scaling.md", "scaling.png"])?;
     let rows = rows(scene, cfg)?;
     let table = markdown(cfg, &rows);
     let plot = chart(cfg, &rows)?;

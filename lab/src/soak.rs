@@ -11,8 +11,9 @@ use host_tool::scene::Scene;
 use host_tool::scene::path::CameraPath;
 use host_tool::session::clock::Cycles;
 use host_tool::session::sequence::{self, FrameStart, Sequence, SequenceFrame};
+use host_tool::session::sim::board;
 use node_fw::reliable::ChannelStats;
-use sim_board::{Board, Faults, SimConfig};
+use sim_board::{Faults, SimConfig};
 
 /// The process's resident set and its peak, in KiB (Linux's /proc).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -104,8 +105,8 @@ pub fn soak(
         Sequence { frames, path: CameraPath::Orbit { degrees: 360.0 }, start: FrameStart::Carried };
     let mut report = SoakReport { frames, ..SoakReport::default() };
     let mut digests = Vec::with_capacity(frames as usize);
-    let mut faulty = Board::new(SimConfig { array: opts.array, faults: Some(faults), ..opts.sim });
     let faulty_opts = RenderOptions { sim: SimConfig { faults: Some(faults), ..opts.sim }, ..*opts };
+    let mut faulty = board(&faulty_opts);
     sequence::run(&mut faulty, scene, &faulty_opts, &sequence, |f| {
         let r = &f.result.frame;
         if !r.complete() || r.rays_created != r.rays_terminated {
@@ -123,8 +124,8 @@ pub fn soak(
     })
     .map_err(|e| e.context("the faulty run"))?;
     drop(faulty);
-    let mut clean = Board::new(SimConfig { array: opts.array, faults: None, ..opts.sim });
     let clean_opts = RenderOptions { sim: SimConfig { faults: None, ..opts.sim }, ..*opts };
+    let mut clean = board(&clean_opts);
     sequence::run(&mut clean, scene, &clean_opts, &sequence, |f| {
         if digests.get(f.number as usize) != Some(&digest(&f)) {
             report.differing.push(f.number);

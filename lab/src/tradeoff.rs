@@ -29,7 +29,7 @@ use host_tool::plan::direct;
 use host_tool::plan::options::RenderOptions;
 use host_tool::reference::{self, RefImage};
 use host_tool::results::image::srgb8;
-use host_tool::results::output::{check_writable, write_all_atomic};
+use host_tool::results::output::write_all_atomic;
 use host_tool::results::plot::{Chart, Series, Style, png};
 use host_tool::scene::Scene;
 use host_tool::session::links::LinkChoice;
@@ -566,10 +566,7 @@ pub fn report(scene: &Scene, cfg: &TradeoffConfig, out: &Path, spot: bool) -> Re
     if cfg.samples.is_empty() || cfg.depths.is_empty() {
         return Err(input("the sweep needs at least one sample count and one depth"));
     }
-    std::fs::create_dir_all(out)
-        .map_err(|e| HostError::Io(format!("cannot create {}: {e}", out.display())))?;
-    let files = ["tradeoff.csv", "tradeoff.md", "tradeoff.png"].map(|f| out.join(f));
-    check_writable(&files.iter().map(|p| p.as_path()).collect::<Vec<_>>())?;
+    let files = crate::outputs(out, ["tradeoff.csv", "tradeoff.md", "tradeoff.png"])?;
     let points = sweep(scene, cfg)?;
     let mut table = markdown(&points, cfg);
     if spot && let Some(estimate) = points.first().and_then(|p| p.instructions) {

@@ -11,7 +11,7 @@ use host_tool::session::clock::Cycles;
 use host_tool::session::sequence::{self, FrameStart, Sequence, SequenceFrame};
 use host_tool::session::sim::render_sim;
 use link_proto::{Balance, SlidePolicy};
-use sim_board::{Board, Faults, SimConfig};
+use sim_board::Faults;
 
 fn scene() -> Scene {
     let mut s = Scene::random(120, 27, 1.0, [16; 3]).unwrap();
@@ -36,7 +36,7 @@ fn sliding(policy: SlidePolicy) -> Option<Balance> {
 
 /// Renders `sequence` on a fresh in-memory board, every frame checked complete.
 fn run(s: &Scene, opts: &RenderOptions, sequence: &Sequence) -> Vec<SequenceFrame<Cycles>> {
-    let mut board = Board::new(SimConfig { array: opts.array, ..opts.sim });
+    let mut board = host_tool::session::sim::board(opts);
     let mut frames = Vec::new();
     sequence::run(&mut board, s, opts, sequence, |f| {
         frames.push(f);

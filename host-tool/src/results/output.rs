@@ -54,9 +54,9 @@ impl Staging {
         Ok(())
     }
 
-    /// Stages a file for `path` that `write` fills as it goes (a file too
-    /// large to hold in memory), kept open between calls by its caller; the
-    /// returned file must be complete and closed before [`Staging::commit`].
+    /// Stages an empty file for `path` that the caller fills as it goes (a
+    /// file too large to hold in memory); it must be complete and closed
+    /// before [`Staging::commit`].
     pub fn open(&mut self, path: &Path) -> Result<std::fs::File, HostError> {
         let target = resolve(path);
         let tmp = temporary(&target)?;

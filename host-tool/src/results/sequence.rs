@@ -77,11 +77,7 @@ impl FrameRow {
             imbalance: imbalance(r),
             slides: r.frame.slides.len(),
             messages: r.busy.iter().map(|b| b.map(|b| b.sent)).sum(),
-            neighbour_bytes: r
-                .bytes
-                .iter()
-                .map(|b| b.iter().enumerate().filter(|&(p, _)| p != host).map(|(_, n)| n).sum::<u64>())
-                .sum(),
+            neighbour_bytes: r.bytes.iter().map(|b| b.iter().sum::<u64>() - b[host]).sum(),
             host_bytes: r.bytes.iter().map(|b| b[host]).sum(),
             rays: r.frame.rays_terminated,
             loaded: f.loaded,

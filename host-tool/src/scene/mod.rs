@@ -317,20 +317,13 @@ impl Scene {
         })
     }
 
-    /// Checks every value against the documented ranges; the error names the first
-    /// offending value.
-    pub fn validate(&self) -> Result<(), HostError> {
-        if self.grid.iter().any(|&s| s == 0 || s > MAX_GRID) {
-            return Err(input(format!("grid {:?} must be 1..={MAX_GRID} cubes per axis", self.grid)));
-        }
-        let g = self.grid.map(f64::from);
-        let in_range =
-            |p: &[f64; 3]| (0..3).all(|a| p[a] >= -(MAX_OUTSIDE as f64) && p[a] <= g[a] + MAX_OUTSIDE as f64);
-        let cam = self.camera();
+    /// Checks `cam` as this scene's camera: finite, its eye near the grid, a
+    /// field of view in range, and a view direction apart from `up`.
+    pub fn check_camera(&self, cam: &Camera) -> Result<(), HostError> {
         finite("camera eye", &cam.eye)?;
         finite("camera look_at", &cam.look_at)?;
         finite("camera up", &cam.up)?;
-        if !in_range(&cam.eye) {
+        if !self.near_grid(&cam.eye) {
             return Err(input(format!(
                 "camera eye {:?} is more than {MAX_OUTSIDE} cubes outside the grid",
                 cam.eye
@@ -343,6 +336,23 @@ impl Scene {
         if norm(forward) == 0.0 || norm(cross(forward, cam.up)) < 1e-9 * norm(forward) {
             return Err(input("camera look_at must differ from eye and not lie along up"));
         }
+        Ok(())
+    }
+
+    /// Whether `p` is within [`MAX_OUTSIDE`] cubes of the grid.
+    fn near_grid(&self, p: &[f64; 3]) -> bool {
+        let out = MAX_OUTSIDE as f64;
+        (0..3).all(|a| p[a] >= -out && p[a] <= f64::from(self.grid[a]) + out)
+    }
+
+    /// Checks every value against the documented ranges; the error names the first
+    /// offending value.
+    pub fn validate(&self) -> Result<(), HostError> {
+        if self.grid.iter().any(|&s| s == 0 || s > MAX_GRID) {
+            return Err(input(format!("grid {:?} must be 1..={MAX_GRID} cubes per axis", self.grid)));
+        }
+        let g = self.grid.map(f64::from);
+        self.check_camera(&self.camera())?;
         unit_range("ambient", &self.ambient)?;
         unit_range("background", &self.background)?;
         if self.max_depth > MAX_DEPTH {
@@ -353,7 +363,7 @@ impl Scene {
         }
         for (i, l) in self.lights.iter().enumerate() {
             finite(&format!("light {i} position"), &l.position)?;
-            if !in_range(&l.position) {
+            if !self.near_grid(&l.position) {
                 return Err(input(format!("light {i} is more than {MAX_OUTSIDE} cubes outside the grid")));
             }
             unit_range(&format!("light {i} color"), &l.color)?;

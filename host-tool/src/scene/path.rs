@@ -48,12 +48,12 @@ impl CameraPath {
         }
     }
 
-    /// The scene as frame `k` of `frames` sees it, checked.
+    /// The (valid) scene as frame `k` of `frames` sees it: only its camera
+    /// is new, and checked.
     pub fn frame(&self, scene: &Scene, k: u32, frames: u32) -> Result<Scene, HostError> {
-        let mut at = scene.clone();
-        at.camera = Some(self.camera(scene, k, frames));
-        at.validate().map_err(|e| e.context(&format!("frame {k}")))?;
-        Ok(at)
+        let camera = self.camera(scene, k, frames);
+        scene.check_camera(&camera).map_err(|e| e.context(&format!("frame {k}")))?;
+        Ok(Scene { camera: Some(camera), ..scene.clone() })
     }
 }
 
@@ -68,10 +68,9 @@ pub fn check_keyframes(scene: &Scene) -> Result<(), HostError> {
         }
     }
     for key in &scene.keyframes {
-        let mut at = scene.clone();
-        at.keyframes.clear();
-        at.camera = Some(key.camera);
-        at.validate().map_err(|e| e.context(&format!("keyframe at frame {}", key.frame)))?;
+        scene
+            .check_camera(&key.camera)
+            .map_err(|e| e.context(&format!("keyframe at frame {}", key.frame)))?;
     }
     Ok(())
 }

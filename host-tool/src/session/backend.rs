@@ -14,7 +14,6 @@ use crate::session::sequence::{self, FrameSink, Sequence};
 use crate::session::serial::SerialArray;
 use crate::session::sim::render_sim;
 use crate::session::transport::Transport;
-use sim_board::{Board, SimConfig};
 
 /// What carries the frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -166,10 +165,7 @@ pub fn render_sequence(
         sequence::run(&mut array, scene, opts, sequence, |f| sink.take(f))
     };
     match backend {
-        Backend::Sim => {
-            let mut board = Board::new(SimConfig { array: opts.array, ..opts.sim });
-            sequence::run(&mut board, scene, opts, sequence, |f| sink.take(f))
-        }
+        Backend::Sim => sequence::run(&mut super::sim::board(opts), scene, opts, sequence, |f| sink.take(f)),
         Backend::Qemu { board, firmware } => {
             on_qemu(scene, opts, *board, firmware, |ptys| on_boards(ptys, false))
         }

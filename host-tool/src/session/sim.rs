@@ -80,6 +80,10 @@ pub fn render_partitioned(
 
 /// Renders a planned frame on a new in-memory board.
 pub fn render_plan(scene: &Scene, plan: &Plan) -> Result<RenderResult<Cycles>, HostError> {
-    let mut board = Board::new(SimConfig { array: plan.options.array, ..plan.options.sim });
-    crate::session::run(&mut board, scene, plan)
+    crate::session::run(&mut board(&plan.options), scene, plan)
+}
+
+/// A new in-memory board of `opts.array` as `opts.sim` configures it.
+pub fn board(opts: &RenderOptions) -> Board {
+    Board::new(SimConfig { array: opts.array, ..opts.sim })
 }
