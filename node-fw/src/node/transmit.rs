@@ -24,6 +24,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
 
     /// Sends what is due, in order of urgency, as far as the links take it.
     pub(super) fn transmit<L: Links>(&mut self, links: &mut L, work: &mut Work) {
+        let computed = work.computed();
         let mut send = |links: &mut L, port: Port, msg: Message| {
             let ray = msg.is_ray();
             let granted = matches!(msg, Message::GrantedRay(_));
@@ -81,7 +82,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 n.end_due = !send(links, port, Message::Finish(Finish { frame: self.frames_ended }));
             }
         }
-        self.send_rays(links, &mut send);
+        self.send_rays(links, &mut send, computed);
         while let Some((port, msg)) = self.control.front().cloned() {
             if !send(links, port, msg) {
                 break;
@@ -152,8 +153,14 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         true
     }
 
-    /// Sends rays bound for neighbours and retirements for the host, oldest first.
-    fn send_rays<L: Links>(&mut self, links: &mut L, send: &mut impl FnMut(&mut L, Port, Message) -> bool) {
+    /// Sends rays bound for neighbours and retirements for the host, oldest
+    /// first; `computed` says whether this poll traced, shaded or created.
+    fn send_rays<L: Links>(
+        &mut self,
+        links: &mut L,
+        send: &mut impl FnMut(&mut L, Port, Message) -> bool,
+        computed: bool,
+    ) {
         if !self.pool.any_leaving() {
             return;
         }
@@ -253,8 +260,13 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 _ => {}
             }
         }
+        // A batch with room waits for company while this poll's work went
+        // on (the next poll adds to it); it goes once the node has no work it
+        // can do, so the last retirements of a frame never wait, and no slot
+        // stays held while the node needs room to go on.
         if let Some(b) = batch
             && !full.get(Port::Host.index()).is_some_and(|&f| f)
+            && (b.records.is_full() || !computed)
         {
             self.send_retirements(links, send, &b);
         }
