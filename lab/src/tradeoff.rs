@@ -286,8 +286,8 @@ fn measure(
             let (img, map) = direct::render_costed(&scene, tw, th, bits, &cost)?;
             let mut map = map;
             direct::add_initial_rays(&mut map, &scene, [tw, th], &cost, true)?;
-            let total =
-                map.compute.iter().chain(&map.messages).sum::<u64>() + direct::broadcast_cost(&scene, &cost);
+            let total = map.compute.iter().chain(&map.messages).sum::<u64>()
+                + direct::fixed_cost(scene.spheres.len(), 0, &scene, &cost);
             (img, Some(total))
         }
     };

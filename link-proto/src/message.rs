@@ -46,11 +46,11 @@ pub enum Message {
     Hello(Hello),
     /// Host to all nodes: a new scene follows; drop the old one.
     SceneBegin(SceneHeader),
-    /// Host broadcast of one sphere; also node to node when a slab moves in a slide.
+    /// Host to each node that keeps it: one sphere; also node to node when a slab moves in a slide.
     Sphere(SphereMsg),
     /// Host broadcast of one point light.
     Light(LightMsg),
-    /// Host to all nodes: the scene is complete; counts let a node check it missed nothing.
+    /// Host to each node: its part of the scene is complete; counts let a node check it missed nothing.
     SceneEnd(SceneEnd),
     /// Host to one node: its place in the array and its subregion.
     Assign(Assign),
@@ -374,10 +374,11 @@ pub struct LightMsg {
     pub color: [u16; 3],
 }
 
-/// End of a scene broadcast.
+/// End of a node's part of the scene.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
 pub struct SceneEnd {
-    /// Number of spheres broadcast.
+    /// Number of spheres sent to this node (the host sends a node only the
+    /// spheres that meet its box).
     pub spheres: u32,
     /// Number of lights broadcast.
     pub lights: u8,

@@ -1,7 +1,7 @@
 //! The static partition: subregion boxes, sub-image tiles, the eye's node, and a
 //! capacity check before anything is sent.
 
-use link_proto::{Assign, Boundaries, Capacity};
+use link_proto::{Assign, Boundaries, Capacity, SphereMsg};
 use node_fw::{CubeBox, Grid, Sphere};
 
 use crate::error::{HostError, input};
@@ -100,6 +100,12 @@ impl Partition {
         node_fw::wiring::coord_of(id, self.array)
     }
 
+    /// How many neighbours node `id` has in the array.
+    pub fn neighbours(&self, id: usize) -> usize {
+        let c = self.coord(id);
+        (0..3).map(|a| usize::from(c[a] > 0) + usize::from(c[a] + 1 < self.array[a])).sum()
+    }
+
     /// The box of node `id`.
     pub fn bounds(&self, id: usize) -> CubeBox {
         let c = self.coord(id);
@@ -107,6 +113,28 @@ impl Partition {
             lo: std::array::from_fn(|a| self.cuts_at(a, c)[usize::from(c[a])]),
             hi: std::array::from_fn(|a| self.cuts_at(a, c)[usize::from(c[a]) + 1]),
         }
+    }
+
+    /// Whether node `id` needs `sphere` sent: the node keeps it (its surface
+    /// meets a cube of the node's box, by the node's own test), or the node
+    /// must see it to refuse it (it is not a valid sphere of `grid`). Sending
+    /// a node only these leaves it holding exactly what the whole scene would
+    /// leave it, for a fraction of the messages on a large array.
+    pub fn needs(&self, id: usize, sphere: &SphereMsg, grid: &Grid) -> bool {
+        let Ok(s) =
+            Sphere::from_msg(sphere, grid).map_err(drop).and_then(|s| s.within(grid).then_some(s).ok_or(()))
+        else {
+            return true;
+        };
+        let mut meets = false;
+        self.bounds(id).for_each_surface_cube(&s, |_| meets = true);
+        meets
+    }
+
+    /// How many of `scene`'s spheres node `id` is sent ([`Self::needs`]).
+    pub fn spheres_sent(&self, id: usize, scene: &Scene) -> usize {
+        let Ok(grid) = Grid::new(scene.grid) else { return scene.spheres.len() };
+        scene.sphere_msgs().iter().filter(|s| self.needs(id, s, &grid)).count()
     }
 
     /// The assignment message of node `id`.

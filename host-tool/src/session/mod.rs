@@ -95,21 +95,28 @@ pub fn frame<T: Transport>(
     })
 }
 
-/// Sends the scene and each node's assignment: what every frame on this
-/// partition needs, sent once.
+/// Sends each node its assignment and its part of the scene: what every
+/// frame on this partition needs, sent once. A node gets only the spheres it
+/// keeps ([`Partition::needs`](crate::plan::partition::Partition::needs)),
+/// not the whole scene: on 64 nodes the whole scene was a thousand messages a
+/// node before its first ray, 7% of a frame.
 pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan) {
     let spheres = scene.sphere_msgs();
     let lights = scene.light_msgs();
+    // A grid the nodes refuse gets the whole scene: they report the error.
+    let grid = node_fw::Grid::new(scene.grid).ok();
     for id in 0..plan.tiles.len() {
         transport.send(id, Message::SceneBegin(scene.header()));
         transport.send(id, Message::Assign(plan.assign(id)));
-        for s in &spheres {
+        let mut sent = 0u32;
+        for s in spheres.iter().filter(|s| grid.as_ref().is_none_or(|g| plan.partition.needs(id, s, g))) {
             transport.send(id, Message::Sphere(*s));
+            sent += 1;
         }
         for l in &lights {
             transport.send(id, Message::Light(*l));
         }
-        let end = SceneEnd { spheres: spheres.len() as u32, lights: lights.len() as u8 };
+        let end = SceneEnd { spheres: sent, lights: lights.len() as u8 };
         transport.send(id, Message::SceneEnd(end));
     }
 }
