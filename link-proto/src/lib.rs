@@ -6,7 +6,8 @@
 //! `0x00 ++ COBS(postcard(frame) ++ [ack] ++ crc32c_le) ++ 0x00` ([`frame`]), so a
 //! receiver can resynchronise on the next zero byte after garbage, and any
 //! corrupted byte is caught by the CRC. A ray travels in a compact form of its
-//! own ([`ray_wire`]), and retirements several to a message ([`retirements`]).
+//! own ([`ray_wire`]), and retirements several to a message in a compact form
+//! ([`retirements`]).
 //!
 //! All numbers on the wire are plain integers: fixed-point values travel as their
 //! raw bits, with the format named in each field's documentation. The largest
@@ -20,6 +21,7 @@ pub mod board;
 pub mod cobs;
 pub mod frame;
 pub mod message;
+mod pack;
 pub mod ray_wire;
 pub mod retirements;
 pub mod site;
@@ -31,4 +33,4 @@ pub use site::{Found, Site};
 
 /// Version of the wire protocol; nodes and host exchange it in [`Hello`].
 /// Bump it whenever a message changes shape (postcard carries no field names).
-pub const PROTOCOL_VERSION: u16 = 10;
+pub const PROTOCOL_VERSION: u16 = 11;

@@ -27,6 +27,7 @@ use serde::de::{Error as _, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::message::{HitMsg, MaterialMsg, RayKind, RayMsg, SphereMsg};
+use crate::pack::{Reader, Writer};
 
 /// The origin a node writes for a primary ray that starts at the eye: the
 /// wire leaves it out, and the receiver puts its own eye back. Far outside
@@ -68,49 +69,6 @@ pub const PIXEL_CREDIT: u64 = 1 << 32;
 const SPHERE_LEN: usize = 2 + 12 + 4 + 6 + 8 + 1;
 /// The longest ray: every option present, every field in its long form.
 pub const RAY_MAX_LEN: usize = 3 + 12 + 12 + 6 + 4 + 12 + 8 + 2 + 2 + 2 + 4 + 4 + SPHERE_LEN;
-
-/// Writes fields one after another into a buffer.
-struct Writer<'a> {
-    out: &'a mut [u8],
-    at: usize,
-}
-
-impl Writer<'_> {
-    fn put(&mut self, bytes: &[u8]) -> Option<()> {
-        let end = self.at.checked_add(bytes.len())?;
-        self.out.get_mut(self.at..end)?.copy_from_slice(bytes);
-        self.at = end;
-        Some(())
-    }
-}
-
-/// Reads fields one after another from a buffer.
-struct Reader<'a> {
-    bytes: &'a [u8],
-}
-
-impl Reader<'_> {
-    fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
-        let (head, rest) = self.bytes.split_at_checked(N)?;
-        self.bytes = rest;
-        head.try_into().ok()
-    }
-    fn u8(&mut self) -> Option<u8> {
-        self.take::<1>().map(|[b]| b)
-    }
-    fn u16(&mut self) -> Option<u16> {
-        self.take().map(u16::from_le_bytes)
-    }
-    fn u32(&mut self) -> Option<u32> {
-        self.take().map(u32::from_le_bytes)
-    }
-    fn i32(&mut self) -> Option<i32> {
-        self.take().map(i32::from_le_bytes)
-    }
-    fn i32x3(&mut self) -> Option<[i32; 3]> {
-        Some([self.i32()?, self.i32()?, self.i32()?])
-    }
-}
 
 fn kind_bits(kind: RayKind) -> u8 {
     let k = match kind {
@@ -171,7 +129,7 @@ fn flags_of(ray: &RayMsg) -> [u8; 2] {
 /// than the ray needs ([`RAY_MAX_LEN`] always suffices).
 pub fn encode_ray(ray: &RayMsg, out: &mut [u8]) -> Option<usize> {
     let [flags, forms] = flags_of(ray);
-    let mut w = Writer { out, at: 0 };
+    let mut w = Writer::new(out);
     w.put(&[flags, forms])?;
     if ray.depth >= DEPTH_ESCAPE {
         w.put(&[ray.depth])?;

@@ -56,8 +56,8 @@ impl Default for CostModel {
     /// UART's bytes are the link model's). One end of a hop on a grant (the
     /// ray, and an ack alone for every other ray) 1 871.7. The rays are half
     /// primaries from the eye, half reflections (43.5 bytes a frame). A
-    /// node's end of a retirement (the host's acks taken) 1 507.3 with one
-    /// record, 2 452.4 with three: 473 a further record.
+    /// node's end of a retirement (the host's acks taken) 1 603.2 with one
+    /// record, 2 526.7 with three: 462 a further record.
     fn default() -> Self {
         Self {
             cube_step: 114,
@@ -68,8 +68,8 @@ impl Default for CostModel {
             ray_message: 1_545,
             granted_ray: 1_872,
             short_message: 984,
-            retire_message: 1_507,
-            retire_record: 473,
+            retire_message: 1_603,
+            retire_record: 462,
             pass: 0,
         }
     }
@@ -219,7 +219,7 @@ mod tests {
         let split = c.split(&w);
         assert_eq!(split.compute, 7 * 114 + 3 * 224 + 7_186 + 2_924);
         assert_eq!(split.setup, 2 * 440);
-        assert_eq!(split.messaging, 2 * 1_545 + 1_872 + 4 * 984 + 2 * 1_507 + 3 * 473);
+        assert_eq!(split.messaging, 2 * 1_545 + 1_872 + 4 * 984 + 2 * 1_603 + 3 * 462);
         assert_eq!(split.total(), c.charge(&w));
     }
 }

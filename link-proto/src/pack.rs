@@ -1,0 +1,112 @@
+//! Fields packed by hand: a writer and a reader over byte buffers, and
+//! canonical varints. The wire forms of rays and retirements are built from
+//! these; every read and write is checked, none panics.
+
+/// Writes fields one after another into a buffer.
+pub(crate) struct Writer<'a> {
+    pub(crate) out: &'a mut [u8],
+    pub(crate) at: usize,
+}
+
+impl<'a> Writer<'a> {
+    /// A writer at the start of `out`.
+    pub(crate) fn new(out: &'a mut [u8]) -> Self {
+        Self { out, at: 0 }
+    }
+
+    /// Appends `bytes`; `None` when they do not fit.
+    pub(crate) fn put(&mut self, bytes: &[u8]) -> Option<()> {
+        let end = self.at.checked_add(bytes.len())?;
+        self.out.get_mut(self.at..end)?.copy_from_slice(bytes);
+        self.at = end;
+        Some(())
+    }
+
+    /// Appends `v` as a varint: seven bits a byte, low first, the high bit
+    /// set on every byte but the last (as postcard writes them). Not inlined:
+    /// a record has four, and flash is short on small boards.
+    #[inline(never)]
+    pub(crate) fn varint(&mut self, mut v: u32) -> Option<()> {
+        while v >= 0x80 {
+            self.put(&[(v as u8) | 0x80])?;
+            v >>= 7;
+        }
+        self.put(&[v as u8])
+    }
+}
+
+/// Reads fields one after another from a buffer.
+pub(crate) struct Reader<'a> {
+    pub(crate) bytes: &'a [u8],
+}
+
+impl Reader<'_> {
+    pub(crate) fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
+        let (head, rest) = self.bytes.split_at_checked(N)?;
+        self.bytes = rest;
+        head.try_into().ok()
+    }
+    pub(crate) fn u8(&mut self) -> Option<u8> {
+        self.take::<1>().map(|[b]| b)
+    }
+    pub(crate) fn u16(&mut self) -> Option<u16> {
+        self.take().map(u16::from_le_bytes)
+    }
+    pub(crate) fn u32(&mut self) -> Option<u32> {
+        self.take().map(u32::from_le_bytes)
+    }
+    pub(crate) fn i32(&mut self) -> Option<i32> {
+        self.take().map(i32::from_le_bytes)
+    }
+    pub(crate) fn i32x3(&mut self) -> Option<[i32; 3]> {
+        Some([self.i32()?, self.i32()?, self.i32()?])
+    }
+
+    /// A varint as [`Writer::varint`] writes it, and only so: a longer form
+    /// of the same value (a last byte of zero) or one beyond `u32` is refused.
+    pub(crate) fn varint(&mut self) -> Option<u32> {
+        let mut v = 0u32;
+        for shift in [0, 7, 14, 21, 28] {
+            let b = self.u8()?;
+            let bits = u32::from(b & 0x7f);
+            if shift == 28 && bits > 0x0f {
+                return None;
+            }
+            v |= bits << shift;
+            if b & 0x80 == 0 {
+                // Canonical: only the value 0 ends on a zero byte, and it is one byte long.
+                return (b != 0 || shift == 0).then_some(v);
+            }
+        }
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    proptest::proptest! {
+        #[test]
+        fn varints_round_trip_as_postcard_writes_them(v in proptest::num::u32::ANY) {
+            let mut buf = [0u8; 5];
+            let mut w = Writer::new(&mut buf);
+            w.varint(v).unwrap();
+            let n = w.at;
+            let mut theirs = [0u8; 5];
+            proptest::prop_assert_eq!(&buf[..n], postcard::to_slice(&v, &mut theirs).unwrap());
+            let mut r = Reader { bytes: &buf[..n] };
+            proptest::prop_assert_eq!(r.varint(), Some(v));
+            proptest::prop_assert!(r.bytes.is_empty());
+        }
+    }
+
+    #[test]
+    fn longer_forms_and_overflows_are_refused() {
+        assert_eq!(Reader { bytes: &[0x81, 0x00] }.varint(), None, "1 written in two bytes");
+        assert_eq!(Reader { bytes: &[0x80, 0x80, 0x80, 0x80, 0x10] }.varint(), None, "2^32");
+        assert_eq!(Reader { bytes: &[0xff, 0xff, 0xff, 0xff, 0x0f] }.varint(), Some(u32::MAX));
+        assert_eq!(Reader { bytes: &[0x80] }.varint(), None, "cut short");
+        assert_eq!(Reader { bytes: &[0x00] }.varint(), Some(0));
+    }
+}
