@@ -4,8 +4,9 @@
 //! boards (921 600 baud) that link bounds the frame. So records travel
 //! together when the link is behind: up to [`Retirements::CAPACITY`] to a
 //! message, and a pixel's rays that end together are summed into one record
-//! (contributions are integers, so the host's sums do not change). Nothing
-//! waits for company: whatever is ready when the link takes a message goes.
+//! (contributions are integers, so the host's sums do not change). A node
+//! holds a message with room only while it has work of its own (see
+//! `node_fw`'s `transmit`), so the last records of a frame never wait.
 
 use postcard::experimental::max_size::MaxSize;
 use serde::de::Visitor;
