@@ -19,8 +19,8 @@
 //! are not the encoder's choice for some ray are refused, never read as
 //! something else.
 //!
-//! Layout: flags, forms, [depth], [origin (3 x i32)], direction (3 x i32),
-//! cell, pixel (u32), [weights], [credit], class, [tag], then `ignore`
+//! Layout: flags, forms, \[depth\], \[origin (3 x i32)\], direction (3 x i32),
+//! cell, pixel (u32), \[weights\], \[credit\], class, \[tag\], then `ignore`
 //! (u16), `t_max` (i32) and `best` (t as i32, then the sphere) when present.
 
 use serde::de::{Error as _, Visitor};

@@ -17,7 +17,7 @@
 //! ([`Message::GrantedRay`]) takes its slot and is answered by nothing, and
 //! the sender forgets it once the reliable link has it. Without a grant the
 //! ray goes as [`Message::Ray`]: the receiver admits it or refuses it
-//! ([`RayReply`]), the sender keeps it until it is admitted and retries after
+//! ([`RayReply`](link_proto::RayReply)), the sender keeps it until it is admitted and retries after
 //! the receiver's [`Message::Space`]. With the class-levelled pool
 //! ([`crate::pool`], where the argument for grants is written down) this is
 //! deadlock-free and loses nothing, whatever the queue depths.
