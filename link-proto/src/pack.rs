@@ -4,7 +4,8 @@
 
 /// Writes fields one after another into a buffer.
 pub(crate) struct Writer<'a> {
-    pub(crate) out: &'a mut [u8],
+    out: &'a mut [u8],
+    /// Bytes written so far.
     pub(crate) at: usize,
 }
 

@@ -17,8 +17,9 @@ use crate::pack::{Reader, Writer};
 use crate::ray_wire::PIXEL_CREDIT;
 
 /// Rays of one pixel that ended. Contributions are integers, so their sum is
-/// independent of order and of how records are merged.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, MaxSize)]
+/// independent of order and of how records are merged. It travels only
+/// inside [`Retirements`], in their packed form.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Retire {
     /// Pixel index `y * width + x`.
     pub pixel: u32,

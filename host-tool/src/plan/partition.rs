@@ -121,14 +121,14 @@ impl Partition {
     /// a node only these leaves it holding exactly what the whole scene would
     /// leave it, for a fraction of the messages on a large array.
     pub fn needs(&self, id: usize, sphere: &SphereMsg, grid: &Grid) -> bool {
-        let Ok(s) =
-            Sphere::from_msg(sphere, grid).map_err(drop).and_then(|s| s.within(grid).then_some(s).ok_or(()))
-        else {
-            return true;
-        };
-        let mut meets = false;
-        self.bounds(id).for_each_surface_cube(&s, |_| meets = true);
-        meets
+        match Sphere::from_msg(sphere, grid) {
+            Ok(s) if s.within(grid) => {
+                let mut meets = false;
+                self.bounds(id).for_each_surface_cube(&s, |_| meets = true);
+                meets
+            }
+            _ => true,
+        }
     }
 
     /// How many of `scene`'s spheres node `id` is sent ([`Self::needs`]).
