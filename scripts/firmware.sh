@@ -33,6 +33,13 @@ check_size() {
 
 (cd firmware && cargo build --release --locked --bins)
 check_size mps2-an385 target/thumbv7m-none-eabi/release/node 128 64
+# The channels' static is built all zeros so that it takes no flash (node.rs):
+# a non-zero initial value would move its 12 KiB into `.data`, copied from flash.
+NM="$(dirname "$SIZE")/llvm-nm"
+"$NM" "$OUT/node-mps2-an385.elf" | grep -q ' [bB] .*node5LINKS' || {
+    echo "error: the node's LINKS static is not zero-initialised: its initial values take flash" >&2
+    exit 1
+}
 # A firmware that panics on purpose: the emulated tests check that its last words reach the host.
 cp target/thumbv7m-none-eabi/release/fault_check "$OUT/fault-check-mps2-an385.elf"
 

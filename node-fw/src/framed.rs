@@ -20,12 +20,18 @@ pub struct FramedLinks<const W: usize, const Q: usize> {
     inbox: [Deque<Message, Q>; 7],
     /// Where frames are encoded on their way out, one for all channels.
     scratch: [u8; MAX_FRAME_LEN],
-    /// Ports a cable may be plugged into (all, unless the owner knows better).
-    cabled: [bool; 7],
+    /// Ports the owner knows no cable is plugged into (none, unless told):
+    /// kept as the ports without one, so that a new value is all zeros.
+    uncabled: [bool; 7],
 }
 
 impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
     /// Channels that resend after `timeout` ticks without progress.
+    ///
+    /// With a `timeout` of 0 the value is all zero bytes, which a board's
+    /// linker keeps in zero-filled RAM rather than copying from flash: a
+    /// board builds its links so, and sets the time-out at boot
+    /// ([`FramedLinks::set_timeout`]).
     pub const fn new(timeout: u64) -> Self {
         let t = timeout;
         let channels = [
@@ -37,13 +43,25 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
             Channel::new(t),
             Channel::new(t),
         ];
-        Self { channels, inbox: [const { Deque::new() }; 7], scratch: [0; MAX_FRAME_LEN], cabled: [true; 7] }
+        Self {
+            channels,
+            inbox: [const { Deque::new() }; 7],
+            scratch: [0; MAX_FRAME_LEN],
+            uncabled: [false; 7],
+        }
     }
 
     /// Tells which ports have a cable (port order), where the owner knows:
     /// the node says no hello on the others ([`Links::cabled`]).
     pub fn set_cabled(&mut self, cabled: [bool; 7]) {
-        self.cabled = cabled;
+        self.uncabled = cabled.map(|c| !c);
+    }
+
+    /// Every channel resends after `timeout` ticks without progress.
+    pub fn set_timeout(&mut self, timeout: u64) {
+        for channel in &mut self.channels {
+            channel.set_timeout(timeout);
+        }
     }
 
     /// Sets the incarnation every channel announces: pick a new one on every
@@ -102,7 +120,7 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
 
 impl<const W: usize, const Q: usize> Links for FramedLinks<W, Q> {
     fn cabled(&self, port: Port) -> bool {
-        self.cabled.get(port.index()).copied().unwrap_or(false)
+        self.uncabled.get(port.index()).is_some_and(|&u| !u)
     }
 
     fn recv(&mut self, port: Port) -> Option<Message> {

@@ -98,7 +98,7 @@ pub struct Channel<const W: usize> {
     /// Sequence number expected next from the peer.
     expected: u16,
     /// An ack or nak to send (control frames are not sequenced).
-    control_due: Option<Message>,
+    control_due: Owed,
     /// An ack moved the window since the last transmit.
     acked_now: bool,
     /// Data frames taken since our last acknowledgement went out.
@@ -147,7 +147,7 @@ impl<const W: usize> Channel<W> {
             written: 0,
             progress_at: 0,
             expected: 0,
-            control_due: None,
+            control_due: Owed::Nothing,
             acked_now: false,
             taken_unacked: 0,
             ack_held_since: None,
@@ -172,6 +172,13 @@ impl<const W: usize> Channel<W> {
     /// tell that it restarted.
     pub fn set_incarnation(&mut self, incarnation: u32) {
         self.incarnation = incarnation;
+    }
+
+    /// Resends after `timeout` ticks without progress from now on (the
+    /// back-off starts again from it).
+    pub fn set_timeout(&mut self, timeout: u64) {
+        self.timeout = timeout;
+        self.resend_wait = timeout;
     }
 
     /// Whether a new data message would fit in the window.
@@ -256,7 +263,7 @@ impl<const W: usize> Channel<W> {
             msg if frame.seq == self.expected => {
                 if deliver(msg) {
                     self.expected = self.expected.wrapping_add(1);
-                    self.control_due = Some(Message::Ack(frame.seq));
+                    self.control_due = Owed::Ack(frame.seq);
                     self.taken_unacked += 1;
                     self.ack_held_since.get_or_insert(self.last_transmit);
                 } else {
@@ -268,11 +275,11 @@ impl<const W: usize> Channel<W> {
                 // A duplicate re-acks the last taken frame; a gap asks for the
                 // missing one. Either way the peer is resending: answer now.
                 self.ack_urgent = true;
-                self.control_due = Some(if precedes(frame.seq, self.expected) {
-                    Message::Ack(self.expected.wrapping_sub(1))
+                self.control_due = if precedes(frame.seq, self.expected) {
+                    Owed::Ack(self.expected.wrapping_sub(1))
                 } else {
-                    Message::Nak(self.expected)
-                });
+                    Owed::Nak(self.expected)
+                };
             }
         }
     }
@@ -355,7 +362,7 @@ impl<const W: usize> Channel<W> {
         // one does it take a frame of its own, and then only once it answers
         // half a window or has waited long enough (a nak goes at once).
         let data_due = self.synced && self.resend_from < self.unacked.len();
-        if let Some(control) = self.control_due.clone()
+        if let Some(control) = self.control_due.message()
             && !(matches!(control, Message::Ack(_)) && (data_due || !self.ack_alone_due(now)))
             && write_control(control, buf, &mut write)
         {
@@ -369,8 +376,8 @@ impl<const W: usize> Channel<W> {
             // Set afresh on every write: an ack from an earlier write may
             // belong to a peer incarnation that has since restarted.
             frame.ack = match self.control_due {
-                Some(Message::Ack(seq)) => Some(seq),
-                _ => None,
+                Owed::Ack(seq) => Some(seq),
+                Owed::Nothing | Owed::Nak(_) => None,
             };
             let Ok(n) = encode_frame(frame, buf) else { break };
             if !write(buf.get(..n).unwrap_or_default()) {
@@ -407,7 +414,7 @@ impl<const W: usize> Channel<W> {
     /// No acknowledgement is owed any more: it went out, alone or riding on
     /// a data frame, or the peer's stream started again.
     fn ack_settled(&mut self) {
-        self.control_due = None;
+        self.control_due = Owed::Nothing;
         self.taken_unacked = 0;
         self.ack_held_since = None;
         self.ack_urgent = false;
@@ -444,7 +451,32 @@ impl<const W: usize> Channel<W> {
 
     /// Whether data frames await acknowledgement or control frames are due.
     pub fn busy(&self) -> bool {
-        !self.unacked.is_empty() || self.control_due.is_some() || self.sync_ack_due.is_some()
+        !self.unacked.is_empty() || self.control_due != Owed::Nothing || self.sync_ack_due.is_some()
+    }
+}
+
+/// What a channel owes its peer besides data: an acknowledgement, a nak, or
+/// nothing. Its own small type rather than an `Option<Message>`: it is read
+/// on every transmit, where a `Message` is a ray's size to copy, and
+/// `Nothing` is zero bytes, so that a board's channels, built by a `const`
+/// constructor, are all zero and take no flash for their initial values
+/// (`FramedLinks::new`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+enum Owed {
+    Nothing = 0,
+    Ack(u16) = 1,
+    Nak(u16) = 2,
+}
+
+impl Owed {
+    /// The control message that pays it, if anything is owed.
+    fn message(self) -> Option<Message> {
+        match self {
+            Owed::Nothing => None,
+            Owed::Ack(seq) => Some(Message::Ack(seq)),
+            Owed::Nak(seq) => Some(Message::Nak(seq)),
+        }
     }
 }
 

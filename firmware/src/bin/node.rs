@@ -12,7 +12,10 @@ use static_cell::ConstStaticCell;
 
 // Static storage: the node and its channels are most of the RAM, known at link time.
 static NODE: ConstStaticCell<BoardNode> = ConstStaticCell::new(BoardNode::new(0));
-static LINKS: ConstStaticCell<BoardLinks> = ConstStaticCell::new(BoardLinks::new(RESEND_AFTER));
+// All zero bytes (its time-out is set at boot), so the linker places it in
+// zero-filled RAM (`.bss`) rather than copying initial values from flash;
+// `scripts/firmware.sh` checks that it stays there.
+static LINKS: ConstStaticCell<BoardLinks> = ConstStaticCell::new(BoardLinks::new(0));
 
 #[entry]
 fn main() -> ! {
@@ -24,6 +27,7 @@ fn main() -> ! {
     let node = NODE.take();
     node.set_board(info);
     let links = LINKS.take();
+    links.set_timeout(RESEND_AFTER);
     links.set_incarnation(boot_count::next_incarnation());
     run(node, links, &mut wires, &mut clock, &mut lights, idle)
 }
