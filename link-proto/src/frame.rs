@@ -121,7 +121,7 @@ impl FrameDecoder {
     /// an `Option` as large as a frame.
     pub fn decode(&mut self, bytes: &mut &[u8]) -> Option<Result<Frame, DecodeError>> {
         while !bytes.is_empty() {
-            let (run, closed, rest) = match bytes.iter().position(|&b| b == 0) {
+            let (run, closed, rest) = match first_zero(bytes) {
                 Some(at) => {
                     (bytes.get(..at).unwrap_or_default(), true, bytes.get(at + 1..).unwrap_or_default())
                 }
@@ -180,6 +180,27 @@ impl FrameDecoder {
     }
 }
 
+/// The index of the first zero byte of `bytes`: the next delimiter. Four
+/// bytes at a time, as a word with a zero byte among them is told by one
+/// subtraction and two masks (`(w - 0x0101_0101) & !w & 0x8080_8080` is
+/// non-zero exactly when a byte of `w` is zero); a frame's bytes hold no
+/// zero, so the search runs over whole words until the delimiter's. On a
+/// Cortex-M3 this is a third of the instructions of a byte-by-byte search,
+/// which every received byte passes through.
+fn first_zero(bytes: &[u8]) -> Option<usize> {
+    let mut words = bytes.chunks_exact(4);
+    let mut skipped = 0;
+    for word in &mut words {
+        let w = u32::from_le_bytes(word.try_into().unwrap_or([0; 4]));
+        if w.wrapping_sub(0x0101_0101) & !w & 0x8080_8080 != 0 {
+            break;
+        }
+        skipped += 4;
+    }
+    let tail = bytes.get(skipped..)?;
+    tail.iter().position(|&b| b == 0).map(|at| skipped + at)
+}
+
 /// Decodes one COBS payload (delimiters stripped) in place.
 fn decode_payload(encoded: &mut [u8]) -> Result<Frame, DecodeError> {
     let payload = cobs::decode_slice(encoded).ok_or(DecodeError::Cobs)?;
@@ -209,5 +230,42 @@ fn decode_ack(trailer: &[u8]) -> Result<u16, DecodeError> {
     match postcard::take_from_bytes::<u16>(trailer) {
         Ok((ack, [])) => Ok(ack),
         _ => Err(DecodeError::Body),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+
+    use super::first_zero;
+    use proptest::prelude::*;
+    use std::vec::Vec;
+
+    /// Bytes with zeros sparse or dense, at every offset from a word's start.
+    fn bytes() -> impl Strategy<Value = Vec<u8>> {
+        (proptest::collection::vec(any::<u8>(), 0..40), 0u8..=255)
+            .prop_map(|(v, keep)| v.into_iter().map(|b| if b < keep { b | 1 } else { 0 }).collect())
+    }
+
+    proptest! {
+        #[test]
+        fn the_first_zero_is_the_first_zero_byte(bytes in bytes(), skip in 0usize..4) {
+            let bytes = bytes.get(skip.min(bytes.len())..).unwrap_or_default();
+            prop_assert_eq!(first_zero(bytes), bytes.iter().position(|&b| b == 0));
+        }
+    }
+
+    #[test]
+    fn a_zero_in_each_byte_of_a_word_is_found() {
+        for at in 0..9 {
+            let mut bytes = [0x80u8; 9];
+            bytes[at] = 0;
+            assert_eq!(first_zero(&bytes), Some(at));
+            // 0x01 and 0x80 around it: the masks' borrow cases.
+            bytes[..at].fill(0x01);
+            assert_eq!(first_zero(&bytes), Some(at));
+        }
+        assert_eq!(first_zero(&[0xFF; 11]), None);
+        assert_eq!(first_zero(&[]), None);
     }
 }
