@@ -41,35 +41,35 @@ impl Default for CostModel {
     /// Cortex-M3 instructions of the node firmware, measured on the emulated
     /// mps2-an385 (`scripts/firmware.sh` runs the `kernels` binary under
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
-    /// test) 113.6; a sphere test over a mostly-missing list 224.0; a walk's
-    /// set-up (the received ray's line checked, the walk resumed) 440.1; a
-    /// shaded hit with one light and a mirror 7 186.2 (the surface and both
+    /// test) 107.8; a sphere test over a mostly-missing list 224.0; a walk's
+    /// set-up (the received ray's line checked, the walk resumed) 438.2; a
+    /// shaded hit with one light and a mirror 7 189.8 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for
     /// the children it spawns later); an initial
-    /// ray (pixel line, ray, entry cube) 2 924.1. Messages through a reliable
+    /// ray (pixel line, ray, entry cube) 2 922.1. Messages through a reliable
     /// channel, whose acknowledgements ride on data going back or, with none,
-    /// go alone once per half window (two frames on a board): one end of a
+    /// go alone once per half window (four frames on a board): one end of a
     /// hop (the ray in its compact wire form, the reply carrying the ray's
-    /// ack, the reply's ack alone every other reply) 2 529.4, and of a ray
-    /// reply with its ack alone every other time 984.4, which stands for
-    /// every short message; a ray end is charged the difference, 1 545 (the
+    /// ack, the reply's ack alone every fourth reply) 2 329.3, and of a ray
+    /// reply with its ack alone every fourth time 822.1, which stands for
+    /// every short message; a ray end is charged the difference, 1 507 (the
     /// UART's bytes are the link model's). One end of a hop on a grant (the
-    /// ray, and an ack alone for every other ray) 1 871.7. The rays are half
+    /// ray, and an ack alone for every fourth ray) 1 672.1. The rays are half
     /// primaries from the eye, half reflections (43.5 bytes a frame). A
-    /// node's end of a retirement (the host's acks taken) 1 603.2 with one
-    /// record, 2 526.7 with three: 462 a further record.
+    /// node's end of a retirement (the host's acks taken) 1 505.8 with one
+    /// record, 2 422.8 with three: 459 a further record.
     fn default() -> Self {
         Self {
-            cube_step: 114,
+            cube_step: 108,
             sphere_test: 224,
-            trace: 440,
-            shade: 7_186,
-            create: 2_924,
-            ray_message: 1_545,
-            granted_ray: 1_872,
-            short_message: 984,
-            retire_message: 1_603,
-            retire_record: 462,
+            trace: 438,
+            shade: 7_190,
+            create: 2_922,
+            ray_message: 1_507,
+            granted_ray: 1_672,
+            short_message: 822,
+            retire_message: 1_506,
+            retire_record: 459,
             pass: 0,
         }
     }
@@ -201,7 +201,21 @@ mod tests {
 
     #[test]
     fn the_split_adds_up_to_the_charge() {
-        let c = CostModel::default();
+        // Prices of their own, so that the sums below do not follow the
+        // measured defaults.
+        let c = CostModel {
+            cube_step: 114,
+            sphere_test: 224,
+            trace: 440,
+            shade: 7_186,
+            create: 2_924,
+            ray_message: 1_545,
+            granted_ray: 1_872,
+            short_message: 984,
+            retire_message: 1_603,
+            retire_record: 462,
+            pass: 0,
+        };
         let w = Work {
             cube_steps: 7,
             sphere_tests: 3,
