@@ -36,7 +36,9 @@ check_size mps2-an385 target/thumbv7m-none-eabi/release/node 128 64
 # The channels' static is built all zeros so that it takes no flash (node.rs):
 # a non-zero initial value would move its 12 KiB into `.data`, copied from flash.
 NM="$(dirname "$SIZE")/llvm-nm"
-"$NM" "$OUT/node-mps2-an385.elf" | grep -q ' [bB] .*node5LINKS' || {
+# (grep without -q reads all of nm's output: under pipefail, nm cut off by an
+# early exit would fail the pipe.)
+"$NM" "$OUT/node-mps2-an385.elf" | grep ' [bB] .*node5LINKS' >/dev/null || {
     echo "error: the node's LINKS static is not zero-initialised: its initial values take flash" >&2
     exit 1
 }
@@ -50,7 +52,7 @@ for board in stm32f413:1536:320 netduinoplus2:1024:192; do
     check_size "$name" target/thumbv7em-none-eabihf/release/node "$flash" "$ram"
 done
 # The real board logs over RTT: its image must carry the RTT control block and defmt's strings.
-grep -q _SEGGER_RTT "$OUT/node-stm32f413.elf" && "$SIZE" -A "$OUT/node-stm32f413.elf" | grep -q '^\.defmt' || {
+grep -q _SEGGER_RTT "$OUT/node-stm32f413.elf" && "$SIZE" -A "$OUT/node-stm32f413.elf" | grep '^\.defmt' >/dev/null || {
     echo "error: the stm32f413 image has no defmt log over RTT" >&2
     exit 1
 }
@@ -64,7 +66,13 @@ echo "$KERNELS" | awk '/^kernel / { printf "  %-12s %8.1f per unit over %d units
 # The in-memory board charges these costs (sim-board/src/cost.rs): a change to
 # the firmware that moves a kernel by more than 2% must update them, or every
 # simulated makespan would describe firmware that no longer exists.
-model() { sed -n "s/^ *$1: \([0-9_]*\),$/\1/p" sim-board/src/cost.rs | tr -d _; }
+# The default model's value of field $1 (only inside `fn default`: tests build models of their own).
+model() {
+    local v
+    v=$(sed -n "/fn default() -> Self {/,/^    }$/ s/^ *$1: \([0-9_]*\),$/\1/p" sim-board/src/cost.rs | tr -d _)
+    [[ "$v" =~ ^[0-9]+$ ]] || { echo "error: no single default for $1 in sim-board/src/cost.rs" >&2; exit 1; }
+    echo "$v"
+}
 check_cost() {
     local kernel=$1 charged=$2
     local measured
