@@ -42,7 +42,7 @@ pub const RAYS: usize = PROFILE.rays;
 /// board's channels keep. An acknowledgement with no data to ride on goes
 /// alone once it answers half a window, so a stream of granted rays costs an
 /// ack frame every fourth ray, not every second as with four (each end of a
-/// granted hop 1 672 instructions against 1 776); the channels' 3.8 KiB more
+/// granted hop 1 667 instructions against 1 776); the channels' 3.8 KiB more
 /// RAM leaves the small board 18 KiB of stack.
 pub const WINDOW: usize = 8;
 /// Received messages waiting per port.

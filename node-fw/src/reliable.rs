@@ -362,8 +362,9 @@ impl<const W: usize> Channel<W> {
         // one does it take a frame of its own, and then only once it answers
         // half a window or has waited long enough (a nak goes at once).
         let data_due = self.synced && self.resend_from < self.unacked.len();
-        if let Some(control) = self.control_due.message()
-            && !(matches!(control, Message::Ack(_)) && (data_due || !self.ack_alone_due(now)))
+        let owed = self.control_due;
+        if !(matches!(owed, Owed::Ack(_)) && (data_due || !self.ack_alone_due(now)))
+            && let Some(control) = owed.message()
             && write_control(control, buf, &mut write)
         {
             self.ack_settled();
