@@ -34,7 +34,7 @@ check_size() {
 (cd firmware && cargo build --release --locked --bins)
 check_size mps2-an385 target/thumbv7m-none-eabi/release/node 128 64
 # The channels' static is built all zeros so that it takes no flash (node.rs):
-# a non-zero initial value would move its 12 KiB into `.data`, copied from flash.
+# a non-zero initial value would move all of it into `.data`, copied from flash.
 NM="$(dirname "$SIZE")/llvm-nm"
 # (grep without -q reads all of nm's output: under pipefail, nm cut off by an
 # early exit would fail the pipe.)

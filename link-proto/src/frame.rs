@@ -188,9 +188,8 @@ impl FrameDecoder {
 /// Cortex-M3 this is a third of the instructions of a byte-by-byte search,
 /// which every received byte passes through.
 fn first_zero(bytes: &[u8]) -> Option<usize> {
-    let mut words = bytes.chunks_exact(4);
     let mut skipped = 0;
-    for word in &mut words {
+    for word in bytes.chunks_exact(4) {
         let w = u32::from_le_bytes(word.try_into().unwrap_or([0; 4]));
         if w.wrapping_sub(0x0101_0101) & !w & 0x8080_8080 != 0 {
             break;
