@@ -79,13 +79,14 @@ fn arb_message() -> impl Strategy<Value = Message> {
     let camera = (any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[i32; 3]>(), any::<[i32; 3]>())
         .prop_map(|(eye, corner, du, dv)| CameraMsg { eye, corner, du, dv });
     prop_oneof![
-        (any::<u16>(), any::<u16>(), any::<(u32, u32, u32, u16)>(), arb_board()).prop_map(
-            |(version, node, c, board)| {
+        (any::<u16>(), any::<u16>(), any::<(u32, u32, u32, u16)>(), arb_board(), any::<u32>()).prop_map(
+            |(version, node, c, board, session)| {
                 Message::Hello(Hello {
                     version,
                     node,
                     capacity: Capacity { spheres: c.0, refs: c.1, cubes: c.2, rays: c.3 },
                     board,
+                    session,
                 })
             }
         ),

@@ -134,6 +134,10 @@ impl<const W: usize, const Q: usize> Links for FramedLinks<W, Q> {
         }
     }
 
+    fn session(&self) -> Option<u32> {
+        self.channels.get(Port::Host.index()).and_then(Channel::peer_incarnation)
+    }
+
     fn peer_restarted(&mut self) -> Option<Port> {
         let mut channels = self.channels.iter_mut().zip(Port::ALL);
         channels.find_map(|(c, port)| c.take_peer_restart().then_some(port))

@@ -88,6 +88,13 @@ pub trait Links {
     fn peer_restarted(&mut self) -> Option<Port> {
         None
     }
+    /// The host session the node is in: the incarnation of the host at the
+    /// other end of the host link, once it has spoken. Every node of a run
+    /// sees the same one; links without sessions, such as in-memory queues,
+    /// are in session 0 for ever.
+    fn session(&self) -> Option<u32> {
+        Some(0)
+    }
     /// Whether a cable may be plugged in at `port`. The node says its
     /// neighbour hello only where one is; links that cannot tell a missing
     /// cable from a silent peer, such as framed UARTs, say yes, and the hello

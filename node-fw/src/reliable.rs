@@ -224,6 +224,11 @@ impl<const W: usize> Channel<W> {
         }
     }
 
+    /// The peer's incarnation, once its `Sync` has arrived.
+    pub fn peer_incarnation(&self) -> Option<u32> {
+        self.peer
+    }
+
     /// Whether the peer restarted since the last call (then forgets it).
     pub fn take_peer_restart(&mut self) -> bool {
         core::mem::take(&mut self.peer_restarted)

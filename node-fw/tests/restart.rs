@@ -1,8 +1,10 @@
 //! Restarts seen through framed links: a new host session makes a node start
-//! over and say hello again; a restarted neighbour is reported to the host.
+//! over and say hello again; a restarted neighbour is reported to the host;
+//! what a neighbour sent in the session before is dropped.
 
 use link_proto::{
-    Assign, BoardInfo, Boundaries, Capacity, ErrorCode, Hello, Message, PROTOCOL_VERSION, SceneHeader,
+    Assign, BoardInfo, Boundaries, Capacity, ErrorCode, Found, Hello, Message, PROTOCOL_VERSION, RayReply,
+    SceneHeader, Site,
 };
 use node_fw::framed::FramedLinks;
 use node_fw::node::Node;
@@ -55,7 +57,19 @@ fn run(
 
 fn hello() -> Message {
     let capacity = Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 };
-    Message::Hello(Hello { version: PROTOCOL_VERSION, node: u16::MAX, capacity, board: BoardInfo::HOST })
+    Message::Hello(Hello {
+        version: PROTOCOL_VERSION,
+        node: u16::MAX,
+        capacity,
+        board: BoardInfo::HOST,
+        session: 0,
+    })
+}
+
+/// A neighbour's hello naming host session `session`.
+fn neighbour_hello(session: u32) -> Message {
+    let capacity = TestNode::capacity();
+    Message::Hello(Hello { version: PROTOCOL_VERSION, node: 1, capacity, board: BoardInfo::HOST, session })
 }
 
 fn assign() -> Message {
@@ -121,4 +135,42 @@ fn a_restarted_neighbour_is_reported_to_the_host() {
     assert_eq!((report.code, report.a), (ErrorCode::PeerRestarted, Port::PosX as u32));
     assert!(node.failed());
     assert_eq!(links.peer_restarted(), None, "the restart is reported once");
+}
+
+#[test]
+fn a_neighbours_message_of_the_session_before_is_dropped() {
+    let (mut node, mut links, mut now) = (TestNode::new(0), TestLinks::new(5), 0);
+    links.set_incarnation(1);
+    let mut host = peer(500);
+    host.send(hello()).unwrap();
+    run(&mut node, &mut links, Port::Host, &mut host, &mut now);
+    let mut neighbour = peer(40);
+    neighbour.send(neighbour_hello(500)).unwrap();
+    run(&mut node, &mut links, Port::PosX, &mut neighbour, &mut now);
+
+    // A new host session; the neighbour has not joined it yet, and a reply
+    // of the session before (to a ray the node forgot) is still on its way.
+    let mut host = peer(501);
+    host.send(hello()).unwrap();
+    run(&mut node, &mut links, Port::Host, &mut host, &mut now);
+    let stale = Message::RayReply(RayReply { tag: 3, accepted: true });
+    neighbour.send(stale.clone()).unwrap();
+    run(&mut node, &mut links, Port::PosX, &mut neighbour, &mut now);
+    assert!(!node.failed(), "a reply of the session before is dropped");
+
+    // Once the neighbour has said the new session, the same reply is taken,
+    // and refers to no ray this node sent.
+    neighbour.send(neighbour_hello(501)).unwrap();
+    neighbour.send(stale).unwrap();
+    run(&mut node, &mut links, Port::PosX, &mut neighbour, &mut now);
+    let got = run(&mut node, &mut links, Port::Host, &mut host, &mut now);
+    let report = got.iter().find_map(|m| match m {
+        Message::Error(e) => Some(*e),
+        _ => None,
+    });
+    let report = report.expect("the node reports the reply");
+    assert_eq!(
+        (report.code, report.b),
+        (ErrorCode::Unexpected, Found::from(Site::ReplyToUnsentRay).to_wire())
+    );
 }

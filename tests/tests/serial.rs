@@ -42,6 +42,7 @@ fn a_node_of_another_protocol_version_is_refused() {
             node: 0,
             capacity: Capacity { spheres: 8, refs: 64, cubes: 64, rays: 64 },
             board: BoardInfo::HOST,
+            session: 0,
         });
         let mut buf = [0u8; MAX_FRAME_LEN];
         let n = encode_frame(&Frame::new(0, hello), &mut buf).expect("encodes");

@@ -73,7 +73,8 @@ pub struct SerialArray {
 impl SerialArray {
     /// Opens one device per node; `names` label the nodes in errors.
     pub fn open(paths: &[String], names: Vec<String>, timeout: Duration) -> Result<Self, HostError> {
-        let links = paths.iter().map(|p| open_link(p)).collect::<Result<Vec<_>, _>>()?;
+        let incarnation = host_incarnation();
+        let links = paths.iter().map(|p| open_link(p, incarnation)).collect::<Result<Vec<_>, _>>()?;
         let now = Instant::now();
         Ok(Self { links, started: now, timeout, greeted: Vec::new(), last_heartbeat: now, names })
     }
@@ -401,6 +402,8 @@ impl Transport for SerialArray {
 
 /// This host run's incarnation on its links: boards still running from an
 /// earlier run see a new one, drop that run's state and say hello again.
+/// One for all links: it names the session, and neighbours of one session
+/// take each other's messages only ([`node_fw::Links::session`]).
 fn host_incarnation() -> u32 {
     let nanos =
         std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u32);
@@ -414,10 +417,11 @@ fn host_hello() -> Message {
         node: u16::MAX,
         capacity: Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 },
         board: BoardInfo::HOST,
+        session: 0,
     })
 }
 
-fn open_link(path: &str) -> Result<Link, HostError> {
+fn open_link(path: &str, incarnation: u32) -> Result<Link, HostError> {
     let port = serialport::new(path, BAUD).timeout(Duration::ZERO).open().map_err(|e| {
         let why = match e.kind {
             serialport::ErrorKind::NoDevice => "is missing".to_string(),
@@ -430,7 +434,7 @@ fn open_link(path: &str) -> Result<Link, HostError> {
         HostError::Serial(format!("serial device {path} {why}"))
     })?;
     let mut channel = Channel::new(RESEND_AFTER_US);
-    channel.set_incarnation(host_incarnation());
+    channel.set_incarnation(incarnation);
     Ok(Link {
         name: path.to_string(),
         port,

@@ -161,6 +161,10 @@ pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> 
     /// Each neighbour port's state, in port order.
     ports: [Neighbour; 6],
     hello_due: bool,
+    /// The host session this node is in ([`Links::session`]), once its host
+    /// has spoken. Until then it says no hello: so by the time the host has
+    /// every node's hello, every node is in its session.
+    session: Option<u32>,
     /// The board this node runs on, as its hellos name it.
     board: BoardInfo,
     error_due: Option<ErrorReport>,
@@ -219,6 +223,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             pool: RayPool::new(),
             ports: [Neighbour::NEW; 6],
             hello_due: true,
+            session: None,
             board: UNNAMED_BOARD,
             error_due: None,
             load_due: None,
@@ -251,7 +256,13 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
 
     /// This node's hello.
     fn hello(&self) -> Hello {
-        Hello { version: PROTOCOL_VERSION, node: self.id, capacity: Self::capacity(), board: self.board }
+        Hello {
+            version: PROTOCOL_VERSION,
+            node: self.id,
+            capacity: Self::capacity(),
+            board: self.board,
+            session: self.session.unwrap_or(0),
+        }
     }
 
     /// Node index.
@@ -335,6 +346,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 _ => self.fail(ErrorCode::PeerRestarted, port as u32, 0),
             }
         }
+        self.follow_session(links.session());
         for port in Port::ALL {
             while let Some(msg) = links.recv(port) {
                 work.received += 1;
@@ -344,11 +356,36 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 if matches!(msg, Message::GrantedRay(_)) {
                     work.granted_rays += 1;
                 }
-                if self.phase != Phase::Failed {
+                if self.phase != Phase::Failed && self.in_session(port, &msg) {
                     self.handle(port, msg);
                 }
             }
         }
+    }
+
+    /// Takes the host session from the links, and says a new one on every
+    /// neighbour port: what a neighbour sent before its hello of our session
+    /// is dropped ([`Self::in_session`]).
+    fn follow_session(&mut self, session: Option<u32>) {
+        if session != self.session {
+            self.session = session;
+            for n in &mut self.ports {
+                n.hello_due = true;
+            }
+        }
+    }
+
+    /// Whether `msg` from `port` belongs to this node's host session. The
+    /// host's messages and hellos always do; a neighbour's others only if its
+    /// last hello named our session. The others are what was still in flight
+    /// when one of the two began a new session: a reply to a ray this node
+    /// forgot when it started over, a grant of slots the neighbour no longer
+    /// sets aside. None can be of a session this node has yet to join, for a
+    /// node is in its host's session before it says hello there, and the host
+    /// starts no frame before every node has.
+    fn in_session(&self, port: Port, msg: &Message) -> bool {
+        matches!(msg, Message::Hello(_))
+            || self.ports.get(port.index()).is_none_or(|n| n.session.is_some() && n.session == self.session)
     }
 
     /// Stops the node, reporting the first error to the host.
@@ -414,6 +451,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             (p, Message::Hello(h)) => {
                 if let Some(n) = self.ports.get_mut(p.index()) {
                     n.peer = Some(h.board.id);
+                    n.session = Some(h.session);
                     n.note_due = true;
                 }
             }

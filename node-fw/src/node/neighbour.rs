@@ -32,6 +32,8 @@ pub(super) struct Neighbour {
     pub(super) end_due: bool,
     /// The board that said hello there.
     pub(super) peer: Option<BoardId>,
+    /// The host session its last hello named.
+    pub(super) session: Option<u32>,
     /// Our hello is still to go.
     pub(super) hello_due: bool,
     /// The host is still to be told who is there.
@@ -52,6 +54,7 @@ impl Neighbour {
         ends_seen: 0,
         end_due: false,
         peer: None,
+        session: None,
         hello_due: true,
         note_due: false,
     };

@@ -52,7 +52,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             }
             ok
         };
-        if self.hello_due {
+        if self.hello_due && self.session.is_some() {
             self.hello_due = !send(links, Port::Host, Message::Hello(self.hello()));
         }
         self.greet_neighbours(links, &mut send);
@@ -115,7 +115,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.control.is_empty() && !self.slide.busy(Side::Lo) && !self.slide.busy(Side::Hi)
     }
 
-    /// Says hello on every cabled neighbour port once, and tells the host who
+    /// Says hello on every cabled neighbour port once a session, and tells the host who
     /// answered. The hellos are not pending work (a port may have no cable,
     /// and an idle node must still rest); the notes are, the host being
     /// always there.
@@ -125,7 +125,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         send: &mut impl FnMut(&mut L, Port, Message) -> bool,
     ) {
         // Built only while one is due: this runs on every poll.
-        let hello = self.ports.iter().any(|n| n.hello_due).then(|| Message::Hello(self.hello()));
+        let due = self.session.is_some() && self.ports.iter().any(|n| n.hello_due);
+        let hello = due.then(|| Message::Hello(self.hello()));
         for (n, port) in self.ports.iter_mut().zip(Port::NEIGHBOURS) {
             if let Some(hello) = hello.as_ref().filter(|_| n.hello_due && links.cabled(port)) {
                 n.hello_due = !send(links, port, hello.clone());
