@@ -312,6 +312,20 @@ pub struct Hello {
     pub session: u32,
 }
 
+impl Hello {
+    /// The host's hello: its protocol version (nodes check it), no
+    /// capacities, no session of its own (its incarnation is the session).
+    pub const fn host() -> Self {
+        Self {
+            version: crate::PROTOCOL_VERSION,
+            node: u16::MAX,
+            capacity: Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 },
+            board: BoardInfo::HOST,
+            session: 0,
+        }
+    }
+}
+
 /// Storage a node was built with; the host checks a scene against it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
 pub struct Capacity {

@@ -2,10 +2,7 @@
 //! over and say hello again; a restarted neighbour is reported to the host;
 //! what a neighbour sent in the session before is dropped.
 
-use link_proto::{
-    Assign, BoardInfo, Boundaries, Capacity, ErrorCode, Found, Hello, Message, PROTOCOL_VERSION, RayReply,
-    SceneHeader, Site,
-};
+use link_proto::{Assign, Boundaries, ErrorCode, Found, Hello, Message, RayReply, SceneHeader, Site};
 use node_fw::framed::FramedLinks;
 use node_fw::node::Node;
 use node_fw::reliable::Channel;
@@ -56,20 +53,12 @@ fn run(
 }
 
 fn hello() -> Message {
-    let capacity = Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 };
-    Message::Hello(Hello {
-        version: PROTOCOL_VERSION,
-        node: u16::MAX,
-        capacity,
-        board: BoardInfo::HOST,
-        session: 0,
-    })
+    Message::Hello(Hello::host())
 }
 
 /// A neighbour's hello naming host session `session`.
 fn neighbour_hello(session: u32) -> Message {
-    let capacity = TestNode::capacity();
-    Message::Hello(Hello { version: PROTOCOL_VERSION, node: 1, capacity, board: BoardInfo::HOST, session })
+    Message::Hello(Hello { node: 1, capacity: TestNode::capacity(), session, ..Hello::host() })
 }
 
 fn assign() -> Message {

@@ -90,6 +90,7 @@ fn a_slide_reply_is_not_overtaken_by_the_next_offer() {
     // The neighbour gives us x in [4, 5), then reports itself idle for the
     // same interval: we take the slab, and at once decide to give one back.
     wires.inbox[east].extend([
+        Message::Hello(Hello { node: 1, capacity: Fw::capacity(), ..Hello::host() }),
         Message::SlideOffer(SlideOffer { interval: 0, boundary: 5 }),
         Message::SlideDone(SlideDone { boundary: 5, spheres: 0 }),
         load(0, 0, 1000, 3),

@@ -4,7 +4,7 @@ use std::fmt;
 
 use std::collections::{BTreeMap, VecDeque};
 
-use link_proto::{BoardId, BoardInfo, Message};
+use link_proto::{BoardId, BoardInfo, Hello, Message};
 use node_fw::Port;
 use node_fw::reliable::{Channel, ChannelStats};
 use rayon::prelude::*;
@@ -204,7 +204,13 @@ impl Board {
             host_channels: (0..if framed { count } else { 0 })
                 .map(|_| Channel::new(channel_timeout(&config)))
                 .collect(),
-            host_backlog: vec![VecDeque::new(); if framed { count } else { 0 }],
+            // The host speaks first, as a serial host does: a node says hello
+            // once its host link is synchronised, and a channel synchronises
+            // only when it has something to send.
+            host_backlog: vec![
+                VecDeque::from([Message::Hello(Hello::host())]);
+                if framed { count } else { 0 }
+            ],
             host_rng: (0..count).map(|id| FaultRng::new(seed ^ 0x5EED, id, 7)).collect(),
             config,
             slots,

@@ -93,7 +93,7 @@ impl SerialArray {
     /// Waits until every node has said hello; checks versions.
     pub fn connect(&mut self) -> Result<(), HostError> {
         for i in 0..self.links.len() {
-            self.send(i, host_hello());
+            self.send(i, Message::Hello(Hello::host()));
         }
         let deadline = Instant::now() + self.timeout;
         while self.links.iter().any(|l| l.hello.is_none()) {
@@ -290,7 +290,7 @@ impl SerialArray {
         self.last_heartbeat = Instant::now();
         for link in &mut self.links {
             if !link.channel.busy() && link.outbox.is_empty() {
-                link.outbox.push_back(host_hello());
+                link.outbox.push_back(Message::Hello(Hello::host()));
             }
         }
     }
@@ -408,17 +408,6 @@ fn host_incarnation() -> u32 {
     let nanos =
         std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u32);
     nanos ^ std::process::id().rotate_left(16)
-}
-
-/// The host's hello: its protocol version (nodes check it), no capacities.
-fn host_hello() -> Message {
-    Message::Hello(Hello {
-        version: PROTOCOL_VERSION,
-        node: u16::MAX,
-        capacity: Capacity { spheres: 0, refs: 0, cubes: 0, rays: 0 },
-        board: BoardInfo::HOST,
-        session: 0,
-    })
 }
 
 fn open_link(path: &str, incarnation: u32) -> Result<Link, HostError> {

@@ -375,17 +375,17 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
     }
 
-    /// Whether `msg` from `port` belongs to this node's host session. The
-    /// host's messages and hellos always do; a neighbour's others only if its
-    /// last hello named our session. The others are what was still in flight
-    /// when one of the two began a new session: a reply to a ray this node
-    /// forgot when it started over, a grant of slots the neighbour no longer
-    /// sets aside. None can be of a session this node has yet to join, for a
-    /// node is in its host's session before it says hello there, and the host
-    /// starts no frame before every node has.
+    /// Whether `msg` from `port` belongs to this node's host session: not
+    /// when a neighbour's last hello named another. Those are what was still
+    /// in flight when one of the two began a new session: a reply to a ray
+    /// this node forgot when it started over, a grant of slots the neighbour
+    /// no longer sets aside. Until both have a session (a node says hello
+    /// once its host has spoken) nothing is stale, for neither has left one.
+    /// And none can be of a session this node has yet to join: a serial host
+    /// starts no frame before every node has said hello in its session.
     fn in_session(&self, port: Port, msg: &Message) -> bool {
-        matches!(msg, Message::Hello(_))
-            || self.ports.get(port.index()).is_none_or(|n| n.session.is_some() && n.session == self.session)
+        let theirs = self.ports.get(port.index()).and_then(|n| n.session);
+        matches!(msg, Message::Hello(_)) || theirs.zip(self.session).is_none_or(|(t, ours)| t == ours)
     }
 
     /// Stops the node, reporting the first error to the host.
