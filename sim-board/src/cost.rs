@@ -42,34 +42,34 @@ impl Default for CostModel {
     /// mps2-an385 (`scripts/firmware.sh` runs the `kernels` binary under
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
     /// test) 107.8; a sphere test over a mostly-missing list 224.0; a walk's
-    /// set-up (the received ray's line checked, the walk resumed) 438.1; a
-    /// shaded hit with one light and a mirror 7 189.4 (the surface and both
+    /// set-up (the received ray's line checked, the walk resumed) 437.1; a
+    /// shaded hit with one light and a mirror 7 189.2 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for
     /// the children it spawns later); an initial
-    /// ray (pixel line, ray, entry cube) 2 929.9. Messages through a reliable
+    /// ray (pixel line, ray, entry cube) 2 920.2. Messages through a reliable
     /// channel, whose acknowledgements ride on data going back or, with none,
-    /// go alone once per half window (two frames on a board): one end of a
+    /// go alone once per half window (four frames on a board): one end of a
     /// hop (the ray in its compact wire form, the reply carrying the ray's
-    /// ack, the reply's ack alone every other reply) 2 310.8, and of a ray
-    /// reply with its ack alone every other time 929.1, which stands for
-    /// every short message; a ray end is charged the difference, 1 382 (the
+    /// ack, the reply's ack alone every fourth reply) 2 293.7, and of a ray
+    /// reply with its ack alone every fourth time 808.8, which stands for
+    /// every short message; a ray end is charged the difference, 1 485 (the
     /// UART's bytes are the link model's). One end of a hop on a grant (the
-    /// ray, and an ack alone for every other ray) 1 776.6. The rays are half
+    /// ray, and an ack alone for every fourth ray) 1 651.0. The rays are half
     /// primaries from the eye, half reflections (43.5 bytes a frame). A
-    /// node's end of a retirement (the host's acks taken) 1 612.2 with one
-    /// record, 2 534.3 with three: 461 a further record.
+    /// node's end of a retirement (the host's acks taken) 1 491.9 with one
+    /// record, 2 408.5 with three: 458 a further record.
     fn default() -> Self {
         Self {
             cube_step: 108,
             sphere_test: 224,
-            trace: 438,
+            trace: 437,
             shade: 7_189,
-            create: 2_930,
-            ray_message: 1_382,
-            granted_ray: 1_777,
-            short_message: 929,
-            retire_message: 1_612,
-            retire_record: 461,
+            create: 2_920,
+            ray_message: 1_485,
+            granted_ray: 1_651,
+            short_message: 809,
+            retire_message: 1_492,
+            retire_record: 458,
             pass: 0,
         }
     }

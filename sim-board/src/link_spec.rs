@@ -182,9 +182,9 @@ impl LinkPreset {
     pub const fn host(self) -> LinkSpec {
         let n = self.neighbour();
         match self {
-            // A board's host channel has a window of four frames.
-            LinkPreset::F413 => LinkSpec { baud: nucleo::HOST_BAUD as u64, capacity: 4, ..n },
-            LinkPreset::Emulated => LinkSpec { capacity: 4, ..n },
+            // A board's host channel has a window of eight frames.
+            LinkPreset::F413 => LinkSpec { baud: nucleo::HOST_BAUD as u64, capacity: 8, ..n },
+            LinkPreset::Emulated => LinkSpec { capacity: 8, ..n },
             LinkPreset::Ideal => LinkSpec { capacity: 64, ..n },
         }
     }
