@@ -50,11 +50,11 @@ impl Default for CostModel {
     /// channel, whose acknowledgements ride on data going back or, with none,
     /// go alone once per half window (four frames on a board): one end of a
     /// hop (the ray in its compact wire form, the reply carrying the ray's
-    /// ack, the reply's ack alone every fourth reply) 2 293.7, and of a ray
+    /// ack, the reply's ack alone every fourth reply) 2 231.5, and of a ray
     /// reply with its ack alone every fourth time 808.8, which stands for
-    /// every short message; a ray end is charged the difference, 1 485 (the
+    /// every short message; a ray end is charged the difference, 1 423 (the
     /// UART's bytes are the link model's). One end of a hop on a grant (the
-    /// ray, and an ack alone for every fourth ray) 1 651.0. The rays are half
+    /// ray, and an ack alone for every fourth ray) 1 588.8. The rays are half
     /// primaries from the eye, half reflections (43.5 bytes a frame). A
     /// node's end of a retirement (the host's acks taken) 1 491.9 with one
     /// record, 2 408.5 with three: 458 a further record.
@@ -65,8 +65,8 @@ impl Default for CostModel {
             trace: 437,
             shade: 7_189,
             create: 2_920,
-            ray_message: 1_485,
-            granted_ray: 1_651,
+            ray_message: 1_423,
+            granted_ray: 1_589,
             short_message: 809,
             retire_message: 1_492,
             retire_record: 458,
