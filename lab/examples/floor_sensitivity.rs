@@ -19,7 +19,7 @@
 
 use host_tool::error::{HostError, input};
 use host_tool::plan::cost_map::CostMap;
-use host_tool::plan::direct::{add_initial_rays, measure_costs};
+use host_tool::plan::direct::{ByteCpu, add_initial_rays, measure_costs};
 use host_tool::plan::fit::floor::floor;
 use host_tool::plan::partition::view_axis;
 use host_tool::scene::Scene;
@@ -57,10 +57,10 @@ fn run() -> Result<(), HostError> {
 /// One configuration's columns.
 fn row(scene: &Scene, n: u16) -> Result<String, HostError> {
     let model = CostModel::default();
-    let cubes = measure_costs(scene, SIZE[0], SIZE[1], &model)?;
+    let cubes = measure_costs(scene, SIZE[0], SIZE[1], &model, ByteCpu::default())?;
     let with_rays = |create| -> Result<CostMap, HostError> {
         let mut map = cubes.clone();
-        add_initial_rays(&mut map, scene, SIZE, &CostModel { create, ..model }, true)?;
+        add_initial_rays(&mut map, scene, SIZE, &CostModel { create, ..model }, ByteCpu::default(), true)?;
         Ok(map)
     };
     let axis = view_axis(scene);

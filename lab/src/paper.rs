@@ -120,6 +120,12 @@ fn run(
 /// The render options of a run: one slot kept per class level and the rest
 /// shared, as `host-tool render` does by default. The links are the ideal
 /// preset's: the paper's experiments are about balancing the nodes' work,
+/// What the CPU pays per byte on the ideal links the paper's runs use.
+fn ideal_bytes() -> host_tool::plan::direct::ByteCpu {
+    let ideal = sim_board::LinkPreset::Ideal;
+    host_tool::plan::direct::ByteCpu::of(&ideal.neighbour(), &ideal.host())
+}
+
 /// and its tables in docs/partition-and-sliding.md were measured on these links.
 fn options(side: [u16; 3], cfg: &PaperConfig, initial: Initial) -> RenderOptions {
     let mut opts = RenderOptions::new(side);
@@ -328,8 +334,13 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                 let (st, imb, axis) = (base.makespan, base.imbalance, base.axis);
                 let _ = writeln!(fig9, "{n}x{n}x{n},{count},{v},static,{axis},{st},1.000,{imb:.3},0,0,0,0");
                 let model = sim_board::CostModel::default();
-                let mut map =
-                    host_tool::plan::direct::measure_costs(&scene, cfg.size[0], cfg.size[1], &model)?;
+                let mut map = host_tool::plan::direct::measure_costs(
+                    &scene,
+                    cfg.size[0],
+                    cfg.size[1],
+                    &model,
+                    ideal_bytes(),
+                )?;
                 // A strict lower bound: the compute work is the same whatever
                 // the partition (every cube's walks, tests and shading, and
                 // every pixel's initial ray); messages only add to it.
@@ -339,7 +350,14 @@ pub fn bench_paper(cfg: &PaperConfig, out: &Path) -> Result<String, HostError> {
                 let compute = map.compute.iter().sum::<u64>() + pixels * model.create;
                 // Oracle: the partition fitted to the full frame's cost map,
                 // messages included, initial rays created where they enter.
-                host_tool::plan::direct::add_initial_rays(&mut map, &scene, cfg.size, &model, true)?;
+                host_tool::plan::direct::add_initial_rays(
+                    &mut map,
+                    &scene,
+                    cfg.size,
+                    &model,
+                    ideal_bytes(),
+                    true,
+                )?;
                 let view_ax = host_tool::plan::partition::view_axis(&scene);
                 let oracle_p =
                     Partition::fitted(scene.grid, [n; 3], view_ax, &map, Boundaries::StaggeredColumns)?;

@@ -283,9 +283,9 @@ fn measure(
         a => {
             let bits = if a == Arithmetic::CameraQ16 { 16 } else { 30 };
             let cost = emulated_costs();
-            let (img, map) = direct::render_costed(&scene, tw, th, bits, &cost)?;
+            let (img, map) = direct::render_costed(&scene, tw, th, bits, &cost, direct::ByteCpu::default())?;
             let mut map = map;
-            direct::add_initial_rays(&mut map, &scene, [tw, th], &cost, true)?;
+            direct::add_initial_rays(&mut map, &scene, [tw, th], &cost, direct::ByteCpu::default(), true)?;
             let total = map.compute.iter().chain(&map.messages).sum::<u64>()
                 + direct::fixed_cost(scene.spheres.len(), 0, &scene, &cost);
             (img, Some(total))

@@ -22,7 +22,15 @@ fn options() -> (Scene, RenderOptions) {
 #[test]
 fn the_cost_map_accounts_for_each_nodes_busy_time() {
     let (s, opts) = options();
-    let map = direct::cost_map(&s, opts.size[0], opts.size[1], &opts.sim.cost, true).unwrap();
+    let map = direct::cost_map(
+        &s,
+        opts.size[0],
+        opts.size[1],
+        &opts.sim.cost,
+        direct::ByteCpu::of(&opts.sim.link, &opts.sim.host_link),
+        true,
+    )
+    .unwrap();
     let want = direct::render(&s, opts.size[0], opts.size[1]).unwrap();
     let even = Partition::even(s.grid, opts.array, 2).unwrap();
     let mut staggered = even.clone();

@@ -4,7 +4,8 @@
 //! contributions), the fixed-point first hit of every pixel for `compare`, and
 //! the baseline that measures what the node machinery costs.
 
-use link_proto::{RayKind, RayMsg};
+use link_proto::ray_wire::{ORIGIN_AT_EYE, PIXEL_CREDIT};
+use link_proto::{Message, RayKind, RayMsg, Retire, Retirements};
 use node_fw::camera::{primary_line, primary_ray};
 use node_fw::shading::{Child, Scene as Shading, Surface};
 use node_fw::{CubeBox, DigitalLine, Direction, Grid, Line, Outcome, Point, Query, Sphere, Subregion};
@@ -38,6 +39,26 @@ pub struct DirectImage {
     pub rays: u64,
 }
 
+/// The CPU a board spends on each byte of a frame it sends or receives, on
+/// its neighbour and its host links: none where DMA moves them (the `ideal`
+/// links), 50 cycles where an interrupt takes each byte (`f413`). A ray's
+/// frame of 45 bytes then costs its ends more than its kernel does, and a
+/// fit that left the bytes out cut partitions that pass too many rays.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ByteCpu {
+    /// Cycles a byte on a neighbour link.
+    pub neighbour: u64,
+    /// Cycles a byte on the host link.
+    pub host: u64,
+}
+
+impl ByteCpu {
+    /// Bytes priced as the in-memory board's links charge them.
+    pub fn of(link: &sim_board::LinkSpec, host: &sim_board::LinkSpec) -> Self {
+        Self { neighbour: link.model().byte_cpu, host: host.model().byte_cpu }
+    }
+}
+
 /// Renders `scene` and measures what every unit cube and face costs, the
 /// initial rays' creation aside ([`add_initial_rays`]).
 pub fn measure_costs(
@@ -45,8 +66,9 @@ pub fn measure_costs(
     width: u16,
     height: u16,
     cost: &sim_board::CostModel,
+    bytes: ByteCpu,
 ) -> Result<CostMap, HostError> {
-    let mut costs = Costs { model: *cost, map: CostMap::new(scene.grid) };
+    let mut costs = Costs { model: *cost, bytes, map: CostMap::new(scene.grid) };
     render_impl(scene, width, height, Some(&mut costs), 30)?;
     Ok(costs.map)
 }
@@ -60,10 +82,11 @@ pub fn cost_map(
     width: u16,
     height: u16,
     cost: &sim_board::CostModel,
+    bytes: ByteCpu,
     creation: bool,
 ) -> Result<CostMap, HostError> {
-    let mut map = measure_costs(scene, width, height, cost)?;
-    add_initial_rays(&mut map, scene, [width, height], cost, creation)?;
+    let mut map = measure_costs(scene, width, height, cost, bytes)?;
+    add_initial_rays(&mut map, scene, [width, height], cost, bytes, creation)?;
     Ok(map)
 }
 
@@ -74,16 +97,23 @@ pub fn add_initial_rays(
     scene: &Scene,
     size: [u16; 2],
     cost: &sim_board::CostModel,
+    bytes: ByteCpu,
     creation: bool,
 ) -> Result<(), HostError> {
     let [width, height] = size;
     let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
     let camera = PixelBasis::new(&scene.camera(), width, height).msg();
-    for cell in crate::plan::entry::entry_cells(&camera, &grid, [width, height]).into_iter().flatten() {
+    for (i, cell) in crate::plan::entry::entry_cells(&camera, &grid, [width, height]).into_iter().enumerate()
+    {
+        let Some(cell) = cell else { continue };
         if creation {
             map.add_compute(cell, cost.create + cost.pass);
         } else {
-            map.add_message(cell, hop_side(cost));
+            let (x, y) = (i % usize::from(width), i / usize::from(width));
+            let line =
+                primary_line(&camera, x as u16, y as u16).map_err(|e| input(format!("camera: {e:?}")))?;
+            let ray = primary_ray(&line, i as u32, PIXEL_CREDIT);
+            map.add_message(cell, hop_side(cost, bytes, &ray));
         }
     }
     Ok(())
@@ -99,14 +129,36 @@ pub fn fixed_cost(spheres: usize, neighbours: usize, scene: &Scene, cost: &sim_b
     (spheres + scene.lights.len() + 6 + 7 * neighbours) as u64 * cost.short_message
 }
 
-/// What each side of a hop pays: the ray on a grant, a share of the `Grant`
-/// messages (one per half the grant target of rays, both ends), and half the
-/// receiver's walk set-up and of the loop's pass around it (a ray entering a
-/// node is set up again, in a poll of its own). Rays go on grants unless a
-/// node's pool has no slot to set aside.
-fn hop_side(cost: &sim_board::CostModel) -> u64 {
-    let grants = cost.short_message / u64::from(node_fw::node::GRANT_TARGET / 2);
-    cost.granted_ray + grants + (cost.trace + cost.pass) / 2
+/// What each side of a hop of `ray` pays: the ray on a grant, a share of
+/// the `Grant` messages (one per half the grant target of rays, both ends),
+/// each with its frame's bytes, and half the receiver's walk set-up and of
+/// the loop's pass around it (a ray entering a node is set up again, in a
+/// poll of its own). Rays go on grants unless a node's pool has no slot to
+/// set aside.
+fn hop_side(cost: &sim_board::CostModel, bytes: ByteCpu, ray: &RayMsg) -> u64 {
+    let grant =
+        cost.short_message + bytes.neighbour * frame_len(&Message::Grant(node_fw::node::GRANT_TARGET));
+    let ray = cost.granted_ray + bytes.neighbour * frame_len(&Message::GrantedRay(on_the_wire(ray)));
+    ray + grant / u64::from(node_fw::node::GRANT_TARGET / 2) + (cost.trace + cost.pass) / 2
+}
+
+/// What a node pays to retire `ray` to the host, its frame's bytes included.
+fn retire_cost(cost: &sim_board::CostModel, bytes: ByteCpu, ray: &RayMsg) -> u64 {
+    // Its contribution is its weight at most: that many bytes, about.
+    let record = Retire { pixel: ray.pixel, rgb: ray.weight, credit: ray.credit, spawned: 0, rays: 1 };
+    cost.retire_message + bytes.host * frame_len(&Message::Retire(Retirements::new(record)))
+}
+
+/// `ray` as a node sends it: a primary ray's origin is the eye, which the
+/// wire leaves out.
+fn on_the_wire(ray: &RayMsg) -> RayMsg {
+    let origin = if ray.kind == RayKind::Primary { ORIGIN_AT_EYE } else { ray.origin };
+    RayMsg { origin, ..*ray }
+}
+
+/// Bytes of `msg`'s frame on the wire.
+fn frame_len(msg: &Message) -> u64 {
+    sim_board::sim_links::frame_len(msg) as u64
 }
 
 /// Renders `scene` with the camera's direction basis rounded to `bits` fraction
@@ -129,8 +181,9 @@ pub fn render_costed(
     height: u16,
     camera_bits: u32,
     cost: &sim_board::CostModel,
+    bytes: ByteCpu,
 ) -> Result<(DirectImage, CostMap), HostError> {
-    let mut costs = Costs { model: *cost, map: CostMap::new(scene.grid) };
+    let mut costs = Costs { model: *cost, bytes, map: CostMap::new(scene.grid) };
     let img = render_impl(scene, width, height, Some(&mut costs), camera_bits)?;
     Ok((img, costs.map))
 }
@@ -196,6 +249,7 @@ fn render_impl(
 /// A cost map being filled.
 struct Costs {
     model: sim_board::CostModel,
+    bytes: ByteCpu,
     map: CostMap,
 }
 
@@ -222,21 +276,24 @@ fn trace(
         any_hit: ray.kind == RayKind::Shadow,
     };
     let (mut best, mut stats) = (None, node_fw::TraceStats::default());
+    // A hop's cost depends on the ray's frame; priced once for its walk.
+    let mut hop = 0;
     if let Some(c) = costs.as_deref_mut() {
         c.map.add_compute(walk.cell(), c.model.trace + c.model.pass);
+        hop = hop_side(&c.model, c.bytes, ray);
     }
     let mut last = walk.cell();
     let outcome = region.trace_observed(&line, &mut walk, &mut best, &query, &mut stats, |cell, tests| {
         if let Some(c) = costs.as_deref_mut() {
             let cycles = c.model.cube_step + u64::from(tests) * c.model.sphere_test;
             c.map.add_compute(cell, cycles);
-            c.map.add_crossing(last, cell, hop_side(&c.model));
+            c.map.add_crossing(last, cell, hop);
         }
         last = cell;
     });
     if let Some(c) = costs {
         // The node where the ray ends retires it to the host.
-        c.map.add_message(last, c.model.retire_message);
+        c.map.add_message(last, retire_cost(&c.model, c.bytes, ray));
         if let Outcome::Hit(_) = outcome {
             c.map.add_compute(last, c.model.shade);
         }

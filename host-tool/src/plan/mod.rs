@@ -118,7 +118,8 @@ pub fn initial_partition(
             // Entry tiles create each ray on its entry cube's node: that is
             // work of the cube. Other modes spread creation by tiles.
             let creation = opts.initial == Initial::Entry;
-            let costs = direct::cost_map(scene, w, h, &opts.sim.cost, creation)
+            let bytes = direct::ByteCpu::of(&opts.sim.link, &opts.sim.host_link);
+            let costs = direct::cost_map(scene, w, h, &opts.sim.cost, bytes, creation)
                 .map_err(|e| e.context("the preview for --layout preview"))?;
             // Staggered no further than the nodes' pools can route at this depth.
             let most = [Boundaries::StaggeredColumns, Boundaries::StaggeredRows]
