@@ -2,7 +2,9 @@
 //! over and say hello again; a restarted neighbour is reported to the host;
 //! what a neighbour sent in the session before is dropped.
 
-use link_proto::{Assign, Boundaries, ErrorCode, Found, Hello, Message, RayReply, SceneHeader, Site};
+use link_proto::{
+    Assign, Boundaries, ErrorCode, ErrorReport, Found, Hello, Message, RayReply, SceneHeader, Site,
+};
 use node_fw::framed::FramedLinks;
 use node_fw::node::Node;
 use node_fw::reliable::Channel;
@@ -74,6 +76,14 @@ fn assign() -> Message {
     })
 }
 
+/// The first error report among `got`.
+fn error_in(got: &[Message]) -> Option<ErrorReport> {
+    got.iter().find_map(|m| match m {
+        Message::Error(e) => Some(*e),
+        _ => None,
+    })
+}
+
 fn said_hello(got: &[Message]) -> usize {
     got.iter().filter(|m| matches!(m, Message::Hello(_))).count()
 }
@@ -116,11 +126,7 @@ fn a_restarted_neighbour_is_reported_to_the_host() {
         run(&mut node, &mut links, Port::PosX, &mut neighbour, &mut now);
     }
     let got = run(&mut node, &mut links, Port::Host, &mut host, &mut now);
-    let report = got.iter().find_map(|m| match m {
-        Message::Error(e) => Some(*e),
-        _ => None,
-    });
-    let report = report.expect("the node reports the restart");
+    let report = error_in(&got).expect("the node reports the restart");
     assert_eq!((report.code, report.a), (ErrorCode::PeerRestarted, Port::PosX as u32));
     assert!(node.failed());
     assert_eq!(links.peer_restarted(), None, "the restart is reported once");
@@ -153,11 +159,7 @@ fn a_neighbours_message_of_the_session_before_is_dropped() {
     neighbour.send(stale).unwrap();
     run(&mut node, &mut links, Port::PosX, &mut neighbour, &mut now);
     let got = run(&mut node, &mut links, Port::Host, &mut host, &mut now);
-    let report = got.iter().find_map(|m| match m {
-        Message::Error(e) => Some(*e),
-        _ => None,
-    });
-    let report = report.expect("the node reports the reply");
+    let report = error_in(&got).expect("the node reports the reply");
     assert_eq!(
         (report.code, report.b),
         (ErrorCode::Unexpected, Found::from(Site::ReplyToUnsentRay).to_wire())
