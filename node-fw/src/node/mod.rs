@@ -364,8 +364,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     }
 
     /// Takes the host session from the links, and says a new one on every
-    /// neighbour port: what a neighbour sent before its hello of our session
-    /// is dropped ([`Self::in_session`]).
+    /// neighbour port: each neighbour judges what we send by the session our
+    /// last hello named, as we judge theirs ([`Self::in_session`]).
     fn follow_session(&mut self, session: Option<u32>) {
         if session != self.session {
             self.session = session;

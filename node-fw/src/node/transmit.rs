@@ -115,10 +115,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.control.is_empty() && !self.slide.busy(Side::Lo) && !self.slide.busy(Side::Hi)
     }
 
-    /// Says hello on every cabled neighbour port once a session, and tells the host who
-    /// answered. The hellos are not pending work (a port may have no cable,
-    /// and an idle node must still rest); the notes are, the host being
-    /// always there.
+    /// Says hello on every cabled neighbour port once a session, and tells
+    /// the host who answered. The hellos are not pending work (a port may
+    /// have no cable, and an idle node must still rest); the notes are, the
+    /// host being always there.
     fn greet_neighbours<L: Links>(
         &mut self,
         links: &mut L,
