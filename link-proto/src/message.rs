@@ -306,9 +306,9 @@ pub struct Hello {
     /// The board the sender runs on.
     pub board: BoardInfo,
     /// The host session the sender is in: the incarnation of the host on its
-    /// host link, 0 before a host has spoken (and from the host itself). A
-    /// node drops what a neighbour sends from a session other than its own:
-    /// what was still in flight when one of them began a new session.
+    /// host link (0 from the host itself, and where links have no sessions).
+    /// A node drops what a neighbour sends from a session other than its
+    /// own: what was still in flight when one of them began a new session.
     pub session: u32,
 }
 

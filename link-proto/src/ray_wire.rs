@@ -411,98 +411,112 @@ mod tests {
         }
     }
 
-    /// Every writing of `r` in the layout the module documents, each field
-    /// in each form its value fits, canonical or not: the decoder's oracle,
-    /// built apart from the encoder's choice of forms.
-    fn writings(r: &RayMsg) -> Vec<Vec<u8>> {
+    /// One choice of form for each field that has more than one.
+    #[derive(Debug, Clone, Copy)]
+    struct Forms {
+        escaped_depth: bool,
+        at_eye: bool,
+        wide_cell: bool,
+        weights: u8,
+        credit: u8,
+        wide_class: bool,
+        tag: bool,
+    }
+
+    /// Every choice of forms whose fields `r`'s values fit, canonical or not.
+    fn forms_fitting(r: &RayMsg) -> Vec<Forms> {
+        let fits = |v: &[u32], max: u32| v.iter().all(|&x| x <= max);
+        let cells = r.cell.map(u32::from);
+        let (weights, credits) =
+            ([WEIGHTS_FULL, WEIGHTS_SHORT, WEIGHTS_LONG], [CREDIT_PRIMARY, CREDIT_SHORT, CREDIT_LONG]);
+        // Two ways for five fields, three for two: 288 choices, by mixed radix.
+        (0..2 * 2 * 2 * 3 * 3 * 2 * 2)
+            .map(|i: usize| Forms {
+                escaped_depth: i % 2 == 1,
+                at_eye: i / 2 % 2 == 1,
+                wide_cell: i / 4 % 2 == 1,
+                weights: weights[i / 8 % 3],
+                credit: credits[i / 24 % 3],
+                wide_class: i / 72 % 2 == 1,
+                tag: i / 144 % 2 == 1,
+            })
+            .filter(|f| f.escaped_depth || r.depth < DEPTH_ESCAPE)
+            .filter(|f| !f.at_eye || r.origin == ORIGIN_AT_EYE)
+            .filter(|f| f.wide_cell || fits(&cells, 0xff))
+            .filter(|f| match f.weights {
+                WEIGHTS_FULL => r.weight == [FULL_WEIGHT; 3],
+                WEIGHTS_SHORT => fits(&r.weight, 0xffff),
+                _ => true,
+            })
+            .filter(|f| match f.credit {
+                CREDIT_PRIMARY => r.credit == PIXEL_CREDIT,
+                CREDIT_SHORT => r.credit < 1 << 40,
+                _ => true,
+            })
+            .filter(|f| f.wide_class || r.class <= 0xff)
+            .filter(|f| f.tag || r.tag == 0)
+            .collect()
+    }
+
+    /// `r` written in the layout the module documents, in forms `f`: the
+    /// decoder's oracle, built apart from the encoder's choice of forms.
+    fn write_in(r: &RayMsg, f: Forms) -> Vec<u8> {
         let le =
             |v: &[u32], n: usize| v.iter().flat_map(|x| x.to_le_bytes()[..n].to_vec()).collect::<Vec<u8>>();
-        let mut out = Vec::new();
-        let fits = |v: &[u32], max: u32| v.iter().all(|&x| x <= max);
-        let cells: Vec<u32> = r.cell.iter().map(|&c| u32::from(c)).collect();
-        for escaped in [false, true].into_iter().filter(|&e| e || r.depth < DEPTH_ESCAPE) {
-            for eye in [false, true].into_iter().filter(|&e| !e || r.origin == ORIGIN_AT_EYE) {
-                for wide_cell in [false, true].into_iter().filter(|&w| w || fits(&cells, 0xff)) {
-                    let weight_forms = [WEIGHTS_FULL, WEIGHTS_SHORT, WEIGHTS_LONG];
-                    for weights in weight_forms.into_iter().filter(|&f| match f {
-                        WEIGHTS_FULL => r.weight == [FULL_WEIGHT; 3],
-                        WEIGHTS_SHORT => fits(&r.weight, 0xffff),
-                        _ => true,
-                    }) {
-                        for credit in
-                            [CREDIT_PRIMARY, CREDIT_SHORT, CREDIT_LONG].into_iter().filter(|&f| match f {
-                                CREDIT_PRIMARY => r.credit == PIXEL_CREDIT,
-                                CREDIT_SHORT => r.credit < 1 << 40,
-                                _ => true,
-                            })
-                        {
-                            for wide_class in [false, true].into_iter().filter(|&w| w || r.class <= 0xff) {
-                                for tag in [false, true].into_iter().filter(|&t| t || r.tag == 0) {
-                                    let mut flags = kind_bits(r.kind);
-                                    for (set, bit) in [
-                                        (r.ignore.is_some(), HAS_IGNORE),
-                                        (r.best.is_some(), HAS_BEST),
-                                        (r.t_max.is_some(), HAS_T_MAX),
-                                        (tag, HAS_TAG),
-                                        (wide_class, WIDE_CLASS),
-                                        (eye, AT_EYE),
-                                    ] {
-                                        flags |= if set { bit } else { 0 };
-                                    }
-                                    let depth = if escaped { DEPTH_ESCAPE } else { r.depth };
-                                    let wide = if wide_cell { WIDE_CELL } else { 0 };
-                                    let mut b = vec![flags, weights | credit | wide | depth << DEPTH_SHIFT];
-                                    if escaped {
-                                        b.push(r.depth);
-                                    }
-                                    if !eye {
-                                        b.extend(le(&r.origin.map(|v| v as u32), 4));
-                                    }
-                                    b.extend(le(&r.dir.map(|v| v as u32), 4));
-                                    b.extend(le(&cells, if wide_cell { 2 } else { 1 }));
-                                    b.extend(r.pixel.to_le_bytes());
-                                    match weights {
-                                        WEIGHTS_SHORT => b.extend(le(&r.weight, 2)),
-                                        WEIGHTS_LONG => b.extend(le(&r.weight, 4)),
-                                        _ => {}
-                                    }
-                                    match credit {
-                                        CREDIT_SHORT => b.extend(&r.credit.to_le_bytes()[..5]),
-                                        CREDIT_LONG => b.extend(r.credit.to_le_bytes()),
-                                        _ => {}
-                                    }
-                                    b.extend(le(&[u32::from(r.class)], if wide_class { 2 } else { 1 }));
-                                    if tag {
-                                        b.extend(r.tag.to_le_bytes());
-                                    }
-                                    if let Some(i) = r.ignore {
-                                        b.extend(i.to_le_bytes());
-                                    }
-                                    if let Some(t) = r.t_max {
-                                        b.extend(t.to_le_bytes());
-                                    }
-                                    if let Some(h) = r.best {
-                                        let s = h.sphere;
-                                        let m = s.material;
-                                        b.extend(h.t.to_le_bytes());
-                                        b.extend(s.id.to_le_bytes());
-                                        b.extend(le(&s.center.map(|v| v as u32), 4));
-                                        b.extend(s.radius.to_le_bytes());
-                                        let [c0, c1, c2] = m.color;
-                                        let shorts =
-                                            [c0, c1, c2, m.ambient, m.diffuse, m.specular, m.reflect];
-                                        b.extend(le(&shorts.map(u32::from), 2));
-                                        b.push(m.shininess);
-                                    }
-                                    out.push(b);
-                                }
-                            }
-                        }
-                    }
-                }
-            }
+        let mut flags = kind_bits(r.kind);
+        for (set, bit) in [
+            (r.ignore.is_some(), HAS_IGNORE),
+            (r.best.is_some(), HAS_BEST),
+            (r.t_max.is_some(), HAS_T_MAX),
+            (f.tag, HAS_TAG),
+            (f.wide_class, WIDE_CLASS),
+            (f.at_eye, AT_EYE),
+        ] {
+            flags |= if set { bit } else { 0 };
         }
-        out
+        let depth = if f.escaped_depth { DEPTH_ESCAPE } else { r.depth };
+        let wide = if f.wide_cell { WIDE_CELL } else { 0 };
+        let mut b = vec![flags, f.weights | f.credit | wide | depth << DEPTH_SHIFT];
+        if f.escaped_depth {
+            b.push(r.depth);
+        }
+        if !f.at_eye {
+            b.extend(le(&r.origin.map(|v| v as u32), 4));
+        }
+        b.extend(le(&r.dir.map(|v| v as u32), 4));
+        b.extend(le(&r.cell.map(u32::from), if f.wide_cell { 2 } else { 1 }));
+        b.extend(r.pixel.to_le_bytes());
+        match f.weights {
+            WEIGHTS_SHORT => b.extend(le(&r.weight, 2)),
+            WEIGHTS_LONG => b.extend(le(&r.weight, 4)),
+            _ => {}
+        }
+        match f.credit {
+            CREDIT_SHORT => b.extend(&r.credit.to_le_bytes()[..5]),
+            CREDIT_LONG => b.extend(r.credit.to_le_bytes()),
+            _ => {}
+        }
+        b.extend(le(&[u32::from(r.class)], if f.wide_class { 2 } else { 1 }));
+        if f.tag {
+            b.extend(r.tag.to_le_bytes());
+        }
+        if let Some(i) = r.ignore {
+            b.extend(i.to_le_bytes());
+        }
+        if let Some(t) = r.t_max {
+            b.extend(t.to_le_bytes());
+        }
+        if let Some(h) = r.best {
+            let (s, m) = (h.sphere, h.sphere.material);
+            b.extend(h.t.to_le_bytes());
+            b.extend(s.id.to_le_bytes());
+            b.extend(le(&s.center.map(|v| v as u32), 4));
+            b.extend(s.radius.to_le_bytes());
+            let [c0, c1, c2] = m.color;
+            b.extend(le(&[c0, c1, c2, m.ambient, m.diffuse, m.specular, m.reflect].map(u32::from), 2));
+            b.push(m.shininess);
+        }
+        b
     }
 
     proptest::proptest! {
@@ -513,7 +527,8 @@ mod tests {
         fn a_ray_decodes_from_exactly_one_writing(r in arb_ray()) {
             let mut buf = [0u8; RAY_MAX_LEN];
             let n = encode_ray(&r, &mut buf).unwrap();
-            let taken: Vec<Vec<u8>> = writings(&r).into_iter().filter(|w| decode_ray(w).is_some()).collect();
+            let writings = forms_fitting(&r).into_iter().map(|f| write_in(&r, f));
+            let taken: Vec<Vec<u8>> = writings.filter(|w| decode_ray(w).is_some()).collect();
             proptest::prop_assert_eq!(taken, vec![buf[..n].to_vec()]);
         }
     }

@@ -76,6 +76,18 @@ fn assign() -> Message {
     })
 }
 
+/// A node whose host, of incarnation 500, has said hello, and been greeted
+/// back once.
+fn greeted_by_host() -> (TestNode, TestLinks, Channel<4>, u64) {
+    let (mut node, mut links, mut now) = (TestNode::new(0), TestLinks::new(5), 0);
+    links.set_incarnation(1);
+    let mut host = peer(500);
+    host.send(hello()).unwrap();
+    let got = run(&mut node, &mut links, Port::Host, &mut host, &mut now);
+    assert_eq!(said_hello(&got), 1);
+    (node, links, host, now)
+}
+
 /// The first error report among `got`.
 fn error_in(got: &[Message]) -> Option<ErrorReport> {
     got.iter().find_map(|m| match m {
@@ -112,12 +124,7 @@ fn a_new_host_session_makes_the_node_start_over() {
 
 #[test]
 fn a_restarted_neighbour_is_reported_to_the_host() {
-    let (mut node, mut links, mut now) = (TestNode::new(0), TestLinks::new(5), 0);
-    links.set_incarnation(1);
-    let mut host = peer(500);
-    host.send(hello()).unwrap();
-    let got = run(&mut node, &mut links, Port::Host, &mut host, &mut now);
-    assert_eq!(said_hello(&got), 1);
+    let (mut node, mut links, mut host, mut now) = greeted_by_host();
 
     // The +x neighbour talks, restarts, and talks again.
     for incarnation in [40, 41] {
@@ -134,11 +141,7 @@ fn a_restarted_neighbour_is_reported_to_the_host() {
 
 #[test]
 fn a_neighbours_message_of_the_session_before_is_dropped() {
-    let (mut node, mut links, mut now) = (TestNode::new(0), TestLinks::new(5), 0);
-    links.set_incarnation(1);
-    let mut host = peer(500);
-    host.send(hello()).unwrap();
-    run(&mut node, &mut links, Port::Host, &mut host, &mut now);
+    let (mut node, mut links, _, mut now) = greeted_by_host();
     let mut neighbour = peer(40);
     neighbour.send(neighbour_hello(500)).unwrap();
     run(&mut node, &mut links, Port::PosX, &mut neighbour, &mut now);

@@ -68,7 +68,7 @@ pub fn measure_costs(
     cost: &sim_board::CostModel,
     bytes: ByteCpu,
 ) -> Result<CostMap, HostError> {
-    let mut costs = Costs { model: *cost, bytes, map: CostMap::new(scene.grid) };
+    let mut costs = Costs::new(cost, bytes, scene.grid);
     render_impl(scene, width, height, Some(&mut costs), 30)?;
     Ok(costs.map)
 }
@@ -103,6 +103,7 @@ pub fn add_initial_rays(
     let [width, height] = size;
     let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
     let camera = PixelBasis::new(&scene.camera(), width, height).msg();
+    let hop = HopPrice::new(cost, bytes);
     for (i, cell) in crate::plan::entry::entry_cells(&camera, &grid, [width, height]).into_iter().enumerate()
     {
         let Some(cell) = cell else { continue };
@@ -113,7 +114,7 @@ pub fn add_initial_rays(
             let line =
                 primary_line(&camera, x as u16, y as u16).map_err(|e| input(format!("camera: {e:?}")))?;
             let ray = primary_ray(&line, i as u32, PIXEL_CREDIT);
-            map.add_message(cell, hop_side(cost, bytes, &ray));
+            map.add_message(cell, hop.of(&ray));
         }
     }
     Ok(())
@@ -129,21 +130,42 @@ pub fn fixed_cost(spheres: usize, neighbours: usize, scene: &Scene, cost: &sim_b
     (spheres + scene.lights.len() + 6 + 7 * neighbours) as u64 * cost.short_message
 }
 
-/// What each side of a hop of `ray` pays: the ray on a grant, a share of
-/// the `Grant` messages (one per half the grant target of rays, both ends),
-/// each with its frame's bytes, and half the receiver's walk set-up and of
-/// the loop's pass around it (a ray entering a node is set up again, in a
-/// poll of its own). Rays go on grants unless a node's pool has no slot to
-/// set aside.
-fn hop_side(cost: &sim_board::CostModel, bytes: ByteCpu, ray: &RayMsg) -> u64 {
-    let grant =
-        cost.short_message + bytes.neighbour * frame_len(&Message::Grant(node_fw::node::GRANT_TARGET));
-    let ray = cost.granted_ray + bytes.neighbour * frame_len(&Message::GrantedRay(on_the_wire(ray)));
-    ray + grant / u64::from(node_fw::node::GRANT_TARGET / 2) + (cost.trace + cost.pass) / 2
+/// What each side of a hop pays: the ray on a grant, a share of the `Grant`
+/// messages (one per half the grant target of rays, both ends), each with
+/// its frame's bytes, and half the receiver's walk set-up and of the loop's
+/// pass around it (a ray entering a node is set up again, in a poll of its
+/// own). Rays go on grants unless a node's pool has no slot to set aside.
+#[derive(Debug, Clone, Copy)]
+struct HopPrice {
+    /// Everything but the ray's own frame bytes.
+    fixed: u64,
+    /// Cycles a byte of the ray's frame.
+    byte: u64,
+}
+
+impl HopPrice {
+    fn new(cost: &sim_board::CostModel, bytes: ByteCpu) -> Self {
+        let grant =
+            cost.short_message + bytes.neighbour * frame_len(&Message::Grant(node_fw::node::GRANT_TARGET));
+        let grants = grant / u64::from(node_fw::node::GRANT_TARGET / 2);
+        Self { fixed: cost.granted_ray + grants + (cost.trace + cost.pass) / 2, byte: bytes.neighbour }
+    }
+
+    /// One side of a hop of `ray` (its frame encoded only where bytes cost).
+    fn of(&self, ray: &RayMsg) -> u64 {
+        match self.byte {
+            0 => self.fixed,
+            byte => self.fixed + byte * frame_len(&Message::GrantedRay(on_the_wire(ray))),
+        }
+    }
 }
 
 /// What a node pays to retire `ray` to the host, its frame's bytes included.
+/// (The frame is encoded only where bytes cost.)
 fn retire_cost(cost: &sim_board::CostModel, bytes: ByteCpu, ray: &RayMsg) -> u64 {
+    if bytes.host == 0 {
+        return cost.retire_message;
+    }
     // Its contribution is its weight at most: that many bytes, about.
     let record = Retire { pixel: ray.pixel, rgb: ray.weight, credit: ray.credit, spawned: 0, rays: 1 };
     cost.retire_message + bytes.host * frame_len(&Message::Retire(Retirements::new(record)))
@@ -183,7 +205,7 @@ pub fn render_costed(
     cost: &sim_board::CostModel,
     bytes: ByteCpu,
 ) -> Result<(DirectImage, CostMap), HostError> {
-    let mut costs = Costs { model: *cost, bytes, map: CostMap::new(scene.grid) };
+    let mut costs = Costs::new(cost, bytes, scene.grid);
     let img = render_impl(scene, width, height, Some(&mut costs), camera_bits)?;
     Ok((img, costs.map))
 }
@@ -250,7 +272,14 @@ fn render_impl(
 struct Costs {
     model: sim_board::CostModel,
     bytes: ByteCpu,
+    hop: HopPrice,
     map: CostMap,
+}
+
+impl Costs {
+    fn new(model: &sim_board::CostModel, bytes: ByteCpu, grid: [u16; 3]) -> Self {
+        Self { model: *model, bytes, hop: HopPrice::new(model, bytes), map: CostMap::new(grid) }
+    }
 }
 
 /// Traces one ray to its end; pushes its children; returns its own contribution.
@@ -280,7 +309,7 @@ fn trace(
     let mut hop = 0;
     if let Some(c) = costs.as_deref_mut() {
         c.map.add_compute(walk.cell(), c.model.trace + c.model.pass);
-        hop = hop_side(&c.model, c.bytes, ray);
+        hop = c.hop.of(ray);
     }
     let mut last = walk.cell();
     let outcome = region.trace_observed(&line, &mut walk, &mut best, &query, &mut stats, |cell, tests| {
