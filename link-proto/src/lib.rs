@@ -19,6 +19,7 @@
 
 pub mod board;
 pub mod cobs;
+mod crc32c;
 pub mod frame;
 pub mod message;
 mod pack;
