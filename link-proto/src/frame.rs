@@ -62,13 +62,24 @@ pub enum DecodeError {
 /// The payload is written straight into `out` after the leading delimiter and
 /// a slot for the first COBS code byte, then stuffed in place: no scratch
 /// buffer to clear and no copy, which a node pays for on every message.
+#[inline]
 pub fn encode_frame(frame: &Frame, out: &mut [u8]) -> Result<usize, EncodeError> {
+    encode_parts(frame.seq, &frame.msg, frame.ack, out)
+}
+
+/// [`encode_frame`] of the frame `seq`, `msg` and `ack` would make, without
+/// the frame: a `Frame` holds a whole `Message`, as large as a ray with its
+/// hit, which a control frame (an acknowledgement) would copy for nothing.
+pub fn encode_parts(seq: u16, msg: &Message, ack: Option<u16>, out: &mut [u8]) -> Result<usize, EncodeError> {
     const SMALL: EncodeError = EncodeError::BufferTooSmall;
     // out = [0, code, payload.., 0]; the payload may use at most what is left.
     let room = out.len().saturating_sub(3).min(MAX_PAYLOAD_LEN);
     let payload = out.get_mut(2..2 + room).ok_or(SMALL)?;
-    let mut body_len = postcard::to_slice(frame, payload).map_err(|_| SMALL)?.len();
-    if let Some(ack) = frame.ack {
+    // The body is the frame's postcard serialization: its sequence number, then its message.
+    let seq_len = postcard::to_slice(&seq, payload).map_err(|_| SMALL)?.len();
+    let msg_out = payload.get_mut(seq_len..).ok_or(SMALL)?;
+    let mut body_len = seq_len + postcard::to_slice(msg, msg_out).map_err(|_| SMALL)?.len();
+    if let Some(ack) = ack {
         let trailer = payload.get_mut(body_len..).ok_or(SMALL)?;
         body_len += postcard::to_slice(&ack, trailer).map_err(|_| SMALL)?.len();
     }

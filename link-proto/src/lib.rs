@@ -28,7 +28,9 @@ pub mod retirements;
 pub mod site;
 
 pub use board::{BoardId, BoardInfo, BoardKind, ClockSource, FirmwareVersion, PeerNote};
-pub use frame::{DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_PAYLOAD_LEN, encode_frame};
+pub use frame::{
+    DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_PAYLOAD_LEN, encode_frame, encode_parts,
+};
 pub use message::*;
 pub use site::{Found, Site};
 

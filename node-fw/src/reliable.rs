@@ -24,7 +24,9 @@
 //! version, so that a peer that predates `Sync` is still told apart.
 
 use heapless::Deque;
-use link_proto::{DecodeError, Frame, FrameDecoder, MAX_FRAME_LEN, Message, PROTOCOL_VERSION, encode_frame};
+use link_proto::{
+    DecodeError, Frame, FrameDecoder, MAX_FRAME_LEN, Message, PROTOCOL_VERSION, encode_frame, encode_parts,
+};
 
 /// Sequence numbers wrap at 2^16; a window is far smaller, so `a` precedes
 /// `b` when the forward distance from `a` to `b` is less than half the space.
@@ -488,5 +490,5 @@ impl Owed {
 
 /// Writes one unsequenced control frame; whether it went out whole.
 fn write_control(msg: Message, buf: &mut [u8], write: &mut impl FnMut(&[u8]) -> bool) -> bool {
-    encode_frame(&Frame::new(0, msg), buf).is_ok_and(|n| write(buf.get(..n).unwrap_or_default()))
+    encode_parts(0, &msg, None, buf).is_ok_and(|n| write(buf.get(..n).unwrap_or_default()))
 }

@@ -50,14 +50,14 @@ impl Default for CostModel {
     /// channel, whose acknowledgements ride on data going back or, with none,
     /// go alone once per half window (four frames on a board): one end of a
     /// hop (the ray in its compact wire form, the reply carrying the ray's
-    /// ack, the reply's ack alone every fourth reply) 2 146.4, and of a ray
-    /// reply with its ack alone every fourth time 805.5, which stands for
-    /// every short message; a ray end is charged the difference, 1 341 (the
+    /// ack, the reply's ack alone every fourth reply) 2 143.4, and of a ray
+    /// reply with its ack alone every fourth time 797.7, which stands for
+    /// every short message; a ray end is charged the difference, 1 346 (the
     /// UART's bytes are the link model's). One end of a hop on a grant (the
-    /// ray, and an ack alone for every fourth ray) 1 513.5. The rays are half
+    /// ray, and an ack alone for every fourth ray) 1 481.2. The rays are half
     /// primaries from the eye, half reflections (43.5 bytes a frame). A
-    /// node's end of a retirement (the host's acks taken) 1 465.5 with one
-    /// record, 2 329.0 with three: 432 a further record.
+    /// node's end of a retirement (the host's acks taken) 1 466.1 with one
+    /// record, 2 328.5 with three: 431 a further record.
     fn default() -> Self {
         Self {
             cube_step: 108,
@@ -65,11 +65,11 @@ impl Default for CostModel {
             trace: 437,
             shade: 7_189,
             create: 2_920,
-            ray_message: 1_341,
-            granted_ray: 1_514,
-            short_message: 806,
+            ray_message: 1_346,
+            granted_ray: 1_481,
+            short_message: 798,
             retire_message: 1_466,
-            retire_record: 432,
+            retire_record: 431,
             pass: 0,
         }
     }

@@ -306,6 +306,8 @@ fn hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
 /// channel pair and the receiver's acks in frames of their own as the
 /// channel sends them when nothing goes back to carry them, once per half
 /// window; no reply (per hop and end, bytes on the UART not included).
+/// Out of line, so that a trace can tell where it begins.
+#[inline(never)]
 fn granted_hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     let (mut a, mut b) = channel_pair();
     let mut wire = (heapless::Vec::new(), [0; MAX_FRAME_LEN]);
@@ -465,6 +467,16 @@ fn memcpy_is_exact() -> bool {
     true
 }
 
+/// Only the granted hop, for scripts/profile-hop.sh, which traces it from
+/// its entry on: what comes before is set-up.
+fn profile_hop(timer: &mut Timer, out: &mut Out, grid: &Grid) -> ! {
+    let mut rays = heapless::Vec::new();
+    creations(timer, grid, &mut rays);
+    let (ticks, n) = granted_hops(timer, &wire_rays(&rays));
+    let _ = writeln!(out, "kernel hop_granted {} {n}", per_unit_x100(ticks, n));
+    board::exit(true)
+}
+
 #[entry]
 fn main() -> ! {
     let board::Parts { host, clock: mut timer, .. } = board::init();
@@ -476,6 +488,9 @@ fn main() -> ! {
         board::exit(false)
     }
 
+    if cfg!(feature = "profile-hop") {
+        profile_hop(&mut timer, &mut out, &grid)
+    }
     let (ticks, steps) = cube_steps(&mut timer, &grid);
     let _ = writeln!(out, "kernel cube_step {} {steps}", per_unit_x100(ticks, steps));
     let (ticks, steps) = cube_walks(&mut timer, &grid);

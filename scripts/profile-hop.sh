@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# Where one end of a granted hop goes, function by function, on the emulated
+# Cortex-M3: builds the `kernels` binary with the `profile-hop` feature (it
+# runs only the granted-hop kernel), runs it under QEMU one instruction at a
+# time (-singlestep -d exec), and sums the instructions each function
+# executed from the kernel's entry on, per hop end. Functions inlined into
+# the kernel (the reliable channel's send, transmit and receive) count as
+# `kernels::granted_hops`. A few minutes; needs what scripts/firmware.sh needs
+# and python3. Not part of the test command: it measures, it checks nothing.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+command -v python3 >/dev/null || { echo "error: python3 is needed to sum the trace" >&2; exit 1; }
+
+(cd firmware && cargo build --release --locked --bin kernels --features profile-hop)
+ELF=target/thumbv7m-none-eabi/release/kernels
+NM="$(rustc --print sysroot)/lib/rustlib/$(rustc -vV | sed -n 's/^host: //p')/bin/llvm-nm"
+[ -x "$NM" ] || { echo "error: llvm-nm missing; run: rustup component add llvm-tools" >&2; exit 1; }
+
+WORK=$(mktemp -d)
+trap 'rm -rf "$WORK"' EXIT
+"$NM" -C --numeric-sort --print-size --defined-only "$ELF" >"$WORK/symbols"
+mkfifo "$WORK/trace"
+python3 - "$WORK/symbols" "$WORK/trace" >"$WORK/profile" <<'EOF' &
+import bisect, collections, re, sys
+
+symbols = []
+for line in open(sys.argv[1]):
+    parts = line.split(None, 3)
+    if len(parts) == 4 and parts[2] in "tT":
+        symbols.append((int(parts[0], 16) & ~1, int(parts[1], 16), re.sub(r"::h[0-9a-f]{16}$", "", parts[3].strip())))
+symbols.sort()
+starts = [s[0] for s in symbols]
+entry = next(a for a, _, name in symbols if name == "kernels::granted_hops")
+
+def function(pc):
+    i = bisect.bisect_right(starts, pc) - 1
+    return symbols[i][2] if i >= 0 and pc < symbols[i][0] + symbols[i][1] else "?"
+
+def pretty(name):
+    return name.replace("$LT$", "<").replace("$GT$", ">").replace("$u20$", " ").replace("$RF$", "&")
+
+# Library routines (memcpy, memclr) are charged to the function that called
+# them: the last other function executing before them.
+LIBRARY = re.compile(r"^(__aeabi_|compiler_builtins|mem)")
+by_function, started, caller = collections.Counter(), False, "?"
+pc_field = re.compile(r"/([0-9a-f]{8})/")
+for line in open(sys.argv[2], errors="replace"):
+    m = pc_field.search(line)
+    if not m:
+        continue
+    pc = int(m.group(1), 16)
+    started = started or pc == entry
+    if not started:
+        continue
+    name = function(pc)
+    if LIBRARY.match(name):
+        name = f"{name} (from {caller})"
+    else:
+        caller = name
+    by_function[pretty(name)] += 1
+for name, n in by_function.most_common():
+    print(n, name)
+EOF
+AGGREGATE=$!
+OUT=$(timeout 900 qemu-system-arm -machine mps2-an385 -cpu cortex-m3 -nographic -icount shift=0 \
+    -singlestep -d exec,nochain -D "$WORK/trace" -semihosting-config enable=on,target=native \
+    -kernel "$ELF" </dev/null)
+wait "$AGGREGATE"
+# The kernel's line: per unit x 100, then the number of hop ends.
+ENDS=$(echo "$OUT" | awk '$1 == "kernel" && $2 == "hop_granted" { print $4 }')
+[ -n "$ENDS" ] || { echo "error: the kernel printed no result: $OUT" >&2; exit 1; }
+echo "one end of a granted hop on the emulated Cortex-M3 ($ENDS ends), instructions by function:"
+awk -v ends="$ENDS" '{ n = $1; $1 = ""; total += n; if (n / ends >= 0.5) printf "  %8.1f %s\n", n / ends, $0 }
+    END { printf "  %8.1f in all (the timed loop included)\n", total / ends }' "$WORK/profile"
