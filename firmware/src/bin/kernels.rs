@@ -173,7 +173,9 @@ fn creations(timer: &mut Timer, grid: &Grid, rays: &mut heapless::Vec<RayMsg, 64
     (timer.ticks() - start, created)
 }
 
-/// Setting up a walk for a received ray: its line, checked, and the resumed walk.
+/// Setting up a walk for a received ray: its line, checked, and the resumed
+/// walk. Out of line, so that a trace can tell where it begins.
+#[inline(never)]
 fn walk_setups(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     let (mut setups, start) = (0u64, timer.ticks());
     for _ in 0..20 {
@@ -467,13 +469,18 @@ fn memcpy_is_exact() -> bool {
     true
 }
 
-/// Only the granted hop, for scripts/profile-hop.sh, which traces it from
-/// its entry on: what comes before is set-up.
-fn profile_hop(timer: &mut Timer, out: &mut Out, grid: &Grid) -> ! {
+/// With the `profile` feature, only the kernel that `PROFILE_KERNEL` names at
+/// build time (`hop_granted` unless it names `trace`), for
+/// scripts/profile-kernel.sh, which traces it from its entry on: what comes
+/// before is set-up.
+fn profile(timer: &mut Timer, out: &mut Out, grid: &Grid) -> ! {
     let mut rays = heapless::Vec::new();
     creations(timer, grid, &mut rays);
-    let (ticks, n) = granted_hops(timer, &wire_rays(&rays));
-    let _ = writeln!(out, "kernel hop_granted {} {n}", per_unit_x100(ticks, n));
+    let (name, (ticks, n)) = match option_env!("PROFILE_KERNEL") {
+        Some("trace") => ("trace", walk_setups(timer, &rays)),
+        _ => ("hop_granted", granted_hops(timer, &wire_rays(&rays))),
+    };
+    let _ = writeln!(out, "kernel {name} {} {n}", per_unit_x100(ticks, n));
     board::exit(true)
 }
 
@@ -488,8 +495,8 @@ fn main() -> ! {
         board::exit(false)
     }
 
-    if cfg!(feature = "profile-hop") {
-        profile_hop(&mut timer, &mut out, &grid)
+    if cfg!(feature = "profile") {
+        profile(&mut timer, &mut out, &grid)
     }
     let (ticks, steps) = cube_steps(&mut timer, &grid);
     let _ = writeln!(out, "kernel cube_step {} {steps}", per_unit_x100(ticks, steps));

@@ -1,17 +1,25 @@
 #!/usr/bin/env bash
-# Where one end of a granted hop goes, function by function, on the emulated
-# Cortex-M3: builds the `kernels` binary with the `profile-hop` feature (it
-# runs only the granted-hop kernel), runs it under QEMU one instruction at a
-# time (-singlestep -d exec), and sums the instructions each function
-# executed from the kernel's entry on, per hop end. Functions inlined into
-# the kernel (the reliable channel's send, transmit and receive) count as
-# `kernels::granted_hops`. A few minutes; needs what scripts/firmware.sh needs
-# and python3. Not part of the test command: it measures, it checks nothing.
+# Where a kernel's instructions go, function by function, on the emulated
+# Cortex-M3: `hop_granted` (one end of a hop on a grant, the default) or
+# `trace` (a received ray's walk set-up). Builds the `kernels` binary with the
+# `profile` feature and PROFILE_KERNEL set (it then runs only that kernel),
+# runs it under QEMU one instruction at a time (-singlestep -d exec), and sums
+# the instructions each function executed from the kernel's entry on, per
+# unit. Functions inlined into the kernel (for the hop, the reliable
+# channel's send, transmit and receive) count as the kernel's own. Seconds;
+# needs what scripts/firmware.sh needs, and python3. Not part of the test
+# command: it measures, it checks nothing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+KERNEL=${1:-hop_granted}
+case "$KERNEL" in
+    hop_granted) ENTRY=kernels::granted_hops ;;
+    trace) ENTRY=kernels::walk_setups ;;
+    *) echo "error: no kernel $KERNEL to profile (hop_granted or trace)" >&2; exit 2 ;;
+esac
 command -v python3 >/dev/null || { echo "error: python3 is needed to sum the trace" >&2; exit 1; }
 
-(cd firmware && cargo build --release --locked --bin kernels --features profile-hop)
+(cd firmware && PROFILE_KERNEL=$KERNEL cargo build --release --locked --bin kernels --features profile)
 ELF=target/thumbv7m-none-eabi/release/kernels
 NM="$(rustc --print sysroot)/lib/rustlib/$(rustc -vV | sed -n 's/^host: //p')/bin/llvm-nm"
 [ -x "$NM" ] || { echo "error: llvm-nm missing; run: rustup component add llvm-tools" >&2; exit 1; }
@@ -20,7 +28,7 @@ WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 "$NM" -C --numeric-sort --print-size --defined-only "$ELF" >"$WORK/symbols"
 mkfifo "$WORK/trace"
-python3 - "$WORK/symbols" "$WORK/trace" >"$WORK/profile" <<'EOF' &
+python3 - "$WORK/symbols" "$WORK/trace" "$ENTRY" >"$WORK/profile" <<'EOF' &
 import bisect, collections, re, sys
 
 symbols = []
@@ -30,7 +38,7 @@ for line in open(sys.argv[1]):
         symbols.append((int(parts[0], 16) & ~1, int(parts[1], 16), re.sub(r"::h[0-9a-f]{16}$", "", parts[3].strip())))
 symbols.sort()
 starts = [s[0] for s in symbols]
-entry = next(a for a, _, name in symbols if name == "kernels::granted_hops")
+entry = next(a for a, _, name in symbols if name == sys.argv[3])
 
 def function(pc):
     i = bisect.bisect_right(starts, pc) - 1
@@ -66,9 +74,9 @@ OUT=$(timeout 900 qemu-system-arm -machine mps2-an385 -cpu cortex-m3 -nographic 
     -singlestep -d exec,nochain -D "$WORK/trace" -semihosting-config enable=on,target=native \
     -kernel "$ELF" </dev/null)
 wait "$AGGREGATE"
-# The kernel's line: per unit x 100, then the number of hop ends.
-ENDS=$(echo "$OUT" | awk '$1 == "kernel" && $2 == "hop_granted" { print $4 }')
-[ -n "$ENDS" ] || { echo "error: the kernel printed no result: $OUT" >&2; exit 1; }
-echo "one end of a granted hop on the emulated Cortex-M3 ($ENDS ends), instructions by function:"
-awk -v ends="$ENDS" '{ n = $1; $1 = ""; total += n; if (n / ends >= 0.5) printf "  %8.1f %s\n", n / ends, $0 }
-    END { printf "  %8.1f in all (the timed loop included)\n", total / ends }' "$WORK/profile"
+# The kernel's line: per unit x 100, then the number of units.
+UNITS=$(echo "$OUT" | awk -v k="$KERNEL" '$1 == "kernel" && $2 == k { print $4 }')
+[ -n "$UNITS" ] || { echo "error: the kernel printed no result: $OUT" >&2; exit 1; }
+echo "kernel $KERNEL on the emulated Cortex-M3 ($UNITS units), instructions per unit by function:"
+awk -v units="$UNITS" '{ n = $1; $1 = ""; total += n; if (n / units >= 0.5) printf "  %8.1f %s\n", n / units, $0 }
+    END { printf "  %8.1f in all (the timed loop included)\n", total / units }' "$WORK/profile"
