@@ -87,10 +87,16 @@ pub struct Direction {
 impl Direction {
     /// A direction from raw Q2.30 components, which must form a unit vector.
     pub fn from_bits(raw: [i32; 3]) -> Result<Self, Error> {
+        Self::with_len2(raw).map(|(dir, _)| dir)
+    }
+
+    /// The direction of raw components and its `d.d`, which the check
+    /// computes anyway and a line keeps.
+    fn with_len2(raw: [i32; 3]) -> Result<(Self, u64), Error> {
         let len2 = squared_length(raw);
         let unit = DIR_ONE.unsigned_abs().pow(2);
         if len2.abs_diff(unit) <= MAX_UNIT_ERROR_RAW {
-            Ok(Self { raw })
+            Ok((Self { raw }, len2))
         } else {
             Err(Error::OutOfRange(Field::Direction))
         }
@@ -142,15 +148,25 @@ impl Direction {
 pub struct Line {
     origin: [i32; 3],
     dir: [i32; 3],
-    /// `d.d` in raw units of 2^-60.
-    a: i128,
+    /// `d.d` in raw units of 2^-60 (about 2^60: the direction is a unit vector).
+    a: u64,
 }
 
 impl Line {
     /// The line through `origin` along `dir`.
     pub fn new(origin: Point, dir: Direction) -> Self {
         let d = dir.bits();
-        Self { origin: origin.bits(), dir: d, a: i128::from(squared_length(d)) }
+        Self { origin: origin.bits(), dir: d, a: squared_length(d) }
+    }
+
+    /// A received ray's line from raw coordinates, checked as
+    /// [`Point::from_bits`] and [`Direction::from_bits`] check them (the
+    /// origin first), with `d.d` computed once: this runs for every ray a
+    /// node receives.
+    pub fn from_bits(origin: [i32; 3], dir: [i32; 3]) -> Result<Self, Error> {
+        let origin = Point::from_bits(origin)?;
+        let (dir, a) = Direction::with_len2(dir)?;
+        Ok(Self { origin: origin.bits(), dir: dir.bits(), a })
     }
 
     /// Raw Q16.16 origin.
@@ -165,7 +181,7 @@ impl Line {
 
     /// `d.d`, raw in units of 2^-60.
     pub fn dir_len2(&self) -> i128 {
-        self.a
+        i128::from(self.a)
     }
 
     /// The point at parameter `t`, rounded to the nearest Q16.16 value.

@@ -5,7 +5,7 @@ use link_proto::{ErrorCode, HitMsg, RayKind, RayMsg, Site};
 
 use crate::digital_line::DigitalLine;
 use crate::error::Error;
-use crate::geometry::{Direction, Line, Point};
+use crate::geometry::Line;
 use crate::limits::Scalar;
 use crate::pool::Stage;
 use crate::route;
@@ -43,7 +43,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
 
     /// A ray's exact line from its wire form.
     pub(super) fn line_of(ray: &RayMsg) -> Result<Line, Error> {
-        Ok(Line::new(Point::from_bits(ray.origin)?, Direction::from_bits(ray.dir)?))
+        Line::from_bits(ray.origin, ray.dir)
     }
 
     /// Walks ray `i` through the subregion: it leaves for a neighbour, retires,
