@@ -29,7 +29,9 @@
 
 use crate::error::{Error, Field};
 use crate::geometry::{Grid, Line, zip3};
-use crate::limits::{DIR_FRAC, MAX_BOUNDARY_RAW, ONE, Scalar};
+use crate::limits::{
+    DIR_FRAC, MAX_BOUNDARY_RAW, MAX_COORD_RAW, MAX_GRID, MIN_COORD_RAW, ONE, POS_FRAC, Scalar,
+};
 
 /// Exact integer walk of the unit cubes along a [`Line`].
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -61,23 +63,6 @@ struct Ratio {
 impl Ratio {
     fn lt(self, other: Ratio) -> bool {
         i128::from(self.num) * i128::from(other.den) < i128::from(other.num) * i128::from(self.den)
-    }
-}
-
-/// A parameter within one cube, `t = num / den * 2^14`, both parts unsigned
-/// 32-bit (`num` a boundary distance up to [`MAX_BOUNDARY_RAW`], `den` a
-/// direction component's magnitude up to 2^31): a received ray's set-up
-/// compares these, and on a Cortex-M3 a cross product of two `u32` is one
-/// instruction where one of [`Ratio`]'s is a library call.
-#[derive(Clone, Copy)]
-struct CubeRatio {
-    num: u32,
-    den: u32,
-}
-
-impl CubeRatio {
-    fn lt(self, other: CubeRatio) -> bool {
-        u64::from(self.num) * u64::from(other.den) < u64::from(other.num) * u64::from(self.den)
     }
 }
 
@@ -120,23 +105,15 @@ impl DigitalLine {
         if abs_d.iter().all(|&d| d == 0) {
             return Err(Error::OutOfRange(Field::Direction));
         }
-        // The cube is entered when the last moving axis enters its slab (an
-        // axis whose slab holds the origin was entered at t <= 0).
-        let entry = zip3(n, abs_d, |n, den| CubeRatio { num: n.saturating_sub(ONE as u32), den })
-            .into_iter()
-            .filter(|r| r.den != 0)
-            .fold(CubeRatio { num: 0, den: 1 }, |latest, r| if latest.lt(r) { r } else { latest });
         let e = [difference(n, abs_d, 0, 1), difference(n, abs_d, 0, 2), difference(n, abs_d, 1, 2)];
         let next = first_axis(e);
-        // The cube must be entered no later than it is left.
-        let exit =
-            CubeRatio { num: n.get(next).copied().unwrap_or(0), den: abs_d.get(next).copied().unwrap_or(1) };
-        if exit.lt(entry) {
+        let abs_d = abs_d.map(i64::from);
+        let inc = abs_d.map(|d| ONE * d);
+        if !entered_before_exit(e, abs_d, inc, next) {
             return Err(Error::OutOfRange(Field::Cell));
         }
-        let abs_d = abs_d.map(i64::from);
         let step = d.map(i32::signum);
-        Ok(DigitalLine { cell, step, abs_d, origin, inc: abs_d.map(|d| ONE * d), e, next })
+        Ok(DigitalLine { cell, step, abs_d, origin, inc, e, next })
     }
 
     /// The current unit cube.
@@ -182,7 +159,7 @@ impl DigitalLine {
     /// cube. Exact: `t |D_a| <= N_a 2^30`.
     pub fn exits_at_or_after(&self, t: Scalar) -> bool {
         let a = self.next;
-        i64::from(t.to_bits()) * get(&self.abs_d, a) <= self.boundary(a) << DIR_FRAC
+        i64::from(t.to_bits()) * self.abs_d.get(a).copied().unwrap_or(0) <= self.boundary(a) << DIR_FRAC
     }
 
     /// `N_a`: raw distance from the origin to the current cube's boundary
@@ -227,24 +204,76 @@ fn difference(n: [u32; 3], abs_d: [u32; 3], i: usize, j: usize) -> i64 {
     }
 }
 
+/// Whether the line enters the cube no later than it leaves it through
+/// axis `next`'s boundary, from the walk's differences.
+///
+/// Moving axis `i` enters its slab at `t = (N_i - ONE) / |D_i|` (at or before
+/// 0 when its slab holds the origin), and the cube is entered when the last
+/// moving axis enters; it is left at `N_a / |D_a|`, `a = next`. So the test
+/// is `(N_i - ONE) |D_a| <= N_a |D_i|` for every moving `i != a` (for
+/// `i = a` it always holds), that is `N_i |D_a| - N_a |D_i| <= ONE |D_a|`,
+/// whose left side is `e_ia + 1` for `i < a` and `-(e_ai + 1)` for `i > a`:
+/// no product beyond those the walk keeps. An axis that does not move never
+/// bounds the entry (its pairs hold constants, not differences).
+#[inline]
+fn entered_before_exit([e01, e02, e12]: [i64; 3], abs_d: [i64; 3], inc: [i64; 3], next: usize) -> bool {
+    let [d0, d1, d2] = abs_d;
+    let [i0, i1, i2] = inc;
+    // `e_ia + 1 <= inc_a` and `-(e_ai + 1) <= inc_a`; an `e` of a moving pair
+    // is under 2^62 in magnitude and `inc` under 2^47, so neither side wraps.
+    let before = |e: i64, inc: i64| e < inc;
+    let after = |e: i64, inc: i64| e + inc >= -1;
+    match next {
+        0 => (d1 == 0 || after(e01, i0)) && (d2 == 0 || after(e02, i0)),
+        1 => (d0 == 0 || before(e01, i1)) && (d2 == 0 || after(e12, i1)),
+        _ => (d0 == 0 || before(e02, i2)) && (d1 == 0 || before(e12, i2)),
+    }
+}
+
 /// `N`: the raw distance along one axis from the origin `o` to the boundary
 /// of cell `c` ahead in the direction of travel `d`; 0 for an axis that does
 /// not move, whose origin must then lie in the cell's closed slab. Fails for
 /// a cell behind the origin or farther than any walk reaches.
+///
+/// In `i32`, which a Cortex-M3 does in one instruction where `i64` takes two
+/// or three: a cell within [`MAX_CELL`] cubes of the grid's corner has
+/// `|c ONE| <= 2^30`, an accepted origin `|o| < 2^29.4`, so `c ONE + ONE - o`
+/// and `o - c ONE` fit (asserted below). A cell farther out is no cube a walk visits (walks
+/// stay in the grid), and is rejected first.
 #[inline]
 fn boundary_distance(o: i32, d: i32, c: i32) -> Result<u32, Error> {
-    let (o, lower) = (i64::from(o), i64::from(c) * ONE);
-    let n = match d.signum() {
-        1 => lower + ONE - o,
-        -1 => o - lower,
-        _ if o >= lower && o <= lower + ONE => return Ok(0),
-        _ => return Err(Error::OutOfRange(Field::Cell)),
+    if c.unsigned_abs() > MAX_CELL {
+        return Err(Error::OutOfRange(Field::Cell));
+    }
+    let lower = c << POS_FRAC;
+    let n = if d > 0 {
+        lower + ONE32 - o
+    } else if d < 0 {
+        o - lower
+    } else if o >= lower && o - lower <= ONE32 {
+        return Ok(0);
+    } else {
+        return Err(Error::OutOfRange(Field::Cell));
     };
     match u32::try_from(n) {
         Ok(n) if i64::from(n) <= MAX_BOUNDARY_RAW => Ok(n),
         _ => Err(Error::OutOfRange(Field::Cell)),
     }
 }
+
+/// The farthest cell from the grid's corner, per axis, that a received ray may name.
+const MAX_CELL: u32 = 1 << 14;
+/// [`ONE`] as `i32`.
+const ONE32: i32 = ONE as i32;
+
+// The bounds `boundary_distance` relies on.
+const _: () = {
+    let lower = (MAX_CELL as i64) * ONE;
+    assert!(lower <= 1 << 30);
+    let o = if MAX_COORD_RAW > -MIN_COORD_RAW { MAX_COORD_RAW } else { -MIN_COORD_RAW };
+    assert!(lower + ONE + o <= i32::MAX as i64);
+    assert!(MAX_CELL > MAX_GRID as u32);
+};
 
 /// The parameter interval `(t_in, t_out)` over which the line is inside the grid
 /// box, with `0 <= t_in < t_out`; `None` if there is no positive-length overlap.
@@ -296,10 +325,6 @@ fn entry_index(num: i128, den: i64, sign: i64, origin: i64, size: i64) -> i32 {
         n.checked_div(d).unwrap_or(0) as i64
     };
     index.clamp(0, size - 1) as i32
-}
-
-fn get(a: &[i64; 3], i: usize) -> i64 {
-    a.get(i).copied().unwrap_or(0)
 }
 
 fn get32(a: &[i32; 3], i: usize) -> i32 {

@@ -124,6 +124,49 @@ fn resume_rejects_cells_off_the_line() {
     assert!(DigitalLine::resume(&line, [-3, 0, 0]).is_err(), "cube behind the origin");
 }
 
+/// Rays along cube diagonals pass exactly through edges and corners, where
+/// the cube is entered at the very parameter it is left: such a cube meets
+/// the ray in one point and is taken, its neighbours past the point are not.
+#[test]
+fn resume_takes_cubes_the_ray_only_touches() {
+    let half = 1 << 15;
+    let diagonal2 = (f64::from(1u32 << 30) / 2f64.sqrt()).round() as i32;
+    let diagonal3 = (f64::from(1u32 << 30) / 3f64.sqrt()).round() as i32;
+    let mut touching = 0;
+    for (origin, dir) in [
+        ([0, 0, half], [diagonal2, diagonal2, 0]),
+        ([4 << 16, 0, half], [-diagonal2, diagonal2, 0]),
+        ([0, half, 0], [diagonal2, 0, diagonal2]),
+        ([0, 0, 0], [diagonal3, diagonal3, diagonal3]),
+        ([4 << 16, 4 << 16, 4 << 16], [-diagonal3, -diagonal3, -diagonal3]),
+    ] {
+        let line = Line::from_bits(origin, dir).unwrap();
+        for x in -1..6 {
+            for y in -1..6 {
+                for z in -1..6 {
+                    let cell = [x, y, z];
+                    let want = cube_meets_ray(origin, dir, cell);
+                    assert_eq!(DigitalLine::resume(&line, cell).is_ok(), want, "{origin:?} {dir:?} {cell:?}");
+                    touching += usize::from(want);
+                }
+            }
+        }
+    }
+    assert!(touching > 40, "the cases reach few cubes ({touching})");
+}
+
+/// A cube farther than 2^14 cubes from the grid's corner is never part of a
+/// walk, and is refused even where the ray passes through it.
+#[test]
+fn resume_refuses_cubes_no_walk_reaches() {
+    let origin = [-10_000 << 16, 0, 0];
+    let line = Line::from_bits(origin, [-(1 << 30), 0, 0]).unwrap();
+    assert!(cube_meets_ray(origin, line.dir(), [-16_385, 0, 0]));
+    assert!(DigitalLine::resume(&line, [-16_384, 0, 0]).is_ok());
+    assert!(DigitalLine::resume(&line, [-16_385, 0, 0]).is_err());
+    assert!(DigitalLine::resume(&line, [i32::MIN, 0, 0]).is_err());
+}
+
 /// Whether the closed unit cube `cell` meets the ray `origin + t dir`,
 /// `t >= 0`, decided independently of the firmware: per axis the interval of
 /// `t` (as num / den with den > 0) over which the ray is in the cube's slab,
