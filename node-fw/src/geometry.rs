@@ -93,9 +93,11 @@ impl Direction {
     /// The direction of raw components and its `d.d`, which the check
     /// computes anyway and a line keeps.
     fn with_len2(raw: [i32; 3]) -> Result<(Self, u64), Error> {
+        const LEAST: u64 = DIR_ONE.unsigned_abs().pow(2) - MAX_UNIT_ERROR_RAW;
         let len2 = squared_length(raw);
-        let unit = DIR_ONE.unsigned_abs().pow(2);
-        if len2.abs_diff(unit) <= MAX_UNIT_ERROR_RAW {
+        // `|len2 - 1| <= MAX_UNIT_ERROR_RAW` as one unsigned comparison: below
+        // `LEAST` the subtraction wraps past the bound.
+        if len2.wrapping_sub(LEAST) <= 2 * MAX_UNIT_ERROR_RAW {
             Ok((Self { raw }, len2))
         } else {
             Err(Error::OutOfRange(Field::Direction))

@@ -291,10 +291,10 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
             if let Some(done) = done {
                 return done;
             }
-            if let Some(b) = best.filter(|b| walk.exits_at_or_after(b.t)) {
+            if let Some(b) = best.filter(|b| walk.exits_at_or_after(line, b.t)) {
                 return Outcome::Hit(b);
             }
-            if query.t_max.is_some_and(|m| walk.exits_at_or_after(m)) {
+            if query.t_max.is_some_and(|m| walk.exits_at_or_after(line, m)) {
                 return Outcome::Clear;
             }
             walk.step();

@@ -205,7 +205,7 @@ proptest! {
         if let Some(mut walk) = node_fw::DigitalLine::enter(&line, &grid) {
             let mut n = 0;
             while grid.contains(walk.cell()) {
-                walk.exits_at_or_after(I16F16::MAX);
+                walk.exits_at_or_after(&line, I16F16::MAX);
                 walk.step();
                 n += 1;
                 prop_assert!(n <= 3 * 256 + 3);

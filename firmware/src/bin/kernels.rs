@@ -20,6 +20,7 @@ use link_proto::{
 use node_board::board::mps2_an385::{self as board, Timer, Uart};
 use node_board::capacity::WINDOW;
 use node_fw::camera::{primary_line, primary_ray};
+use node_fw::digital_line::wire_cell;
 use node_fw::reliable::Channel;
 use node_fw::shading::{Scene, Surface};
 use node_fw::{DigitalLine, Direction, Grid, Line, Point, Sphere};
@@ -185,7 +186,7 @@ fn walk_setups(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
         for ray in rays {
             let line = Line::from_bits(ray.origin, ray.dir);
             if let Ok(line) = line {
-                core::hint::black_box(DigitalLine::resume(&line, ray.cell.map(i32::from)).is_ok());
+                core::hint::black_box(DigitalLine::resume(&line, wire_cell(ray.cell)).is_ok());
             }
             setups += 1;
         }

@@ -3,7 +3,7 @@
 
 use link_proto::{ErrorCode, HitMsg, RayKind, RayMsg, Site};
 
-use crate::digital_line::DigitalLine;
+use crate::digital_line::{DigitalLine, wire_cell};
 use crate::error::Error;
 use crate::geometry::Line;
 use crate::limits::Scalar;
@@ -54,7 +54,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             Ok(line) => line,
             Err(_) => return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::RayWithoutLine),
         };
-        let Ok(mut walk) = DigitalLine::resume(&line, ray.cell.map(i32::from)) else {
+        let Ok(mut walk) = DigitalLine::resume(&line, wire_cell(ray.cell)) else {
             return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::RayCellOffLine);
         };
         let carried = ray.best;
