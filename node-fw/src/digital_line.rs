@@ -88,7 +88,8 @@ impl DigitalLine {
     /// Continues the walk of `line` from `cell`, as a node does with a received ray.
     ///
     /// Fails if the line does not pass through the closed cube `cell` ahead of
-    /// its origin: such a state cannot come from a real walk.
+    /// its origin, or if `cell` lies more than 2^14 cubes from the grid's
+    /// corner along an axis: such a state cannot come from a real walk.
     pub fn resume(line: &Line, cell: [i32; 3]) -> Result<Self, Error> {
         // Straight-line code over the three axes, the walk built once at the
         // end: this runs for every ray a node receives, and a loop over
@@ -245,8 +246,8 @@ fn entered_before_exit([e01, e02, e12]: [i64; 3], abs_d: [i64; 3], inc: [i64; 3]
 /// In `i32`, which a Cortex-M3 does in one instruction where `i64` takes two
 /// or three: a cell within [`MAX_CELL`] cubes of the grid's corner has
 /// `|c ONE| <= 2^30`, an accepted origin `|o| < 2^29.4`, so `c ONE + ONE - o`
-/// and `o - c ONE` fit (asserted below). A cell farther out is no cube a walk visits (walks
-/// stay in the grid), and is rejected first.
+/// and `o - c ONE` fit (asserted below). A cell farther out is no cube a
+/// walk visits (walks stay in the grid), and is rejected first.
 #[inline]
 fn boundary_distance(o: i32, d: i32, c: i32) -> Result<u32, Error> {
     if c.unsigned_abs() > MAX_CELL {
