@@ -103,9 +103,8 @@ impl DigitalLine {
         let abs_d = d.map(i32::unsigned_abs);
         let e = [difference(n, abs_d, 0, 1), difference(n, abs_d, 0, 2), difference(n, abs_d, 1, 2)];
         let next = first_axis(e);
-        let abs_d = abs_d.map(i64::from);
-        let inc = abs_d.map(|d| ONE * d);
-        if !entered_before_exit(e, abs_d, inc, next) {
+        let inc = abs_d.map(|d| ONE * i64::from(d));
+        if !entered_before_exit(e, inc, next) {
             return Err(Error::OutOfRange(Field::Cell));
         }
         let step = d.map(i32::signum);
@@ -221,20 +220,20 @@ fn difference(n: [u32; 3], abs_d: [u32; 3], i: usize, j: usize) -> i64 {
 /// is `(N_i - ONE) |D_a| <= N_a |D_i|` for every moving `i != a` (for
 /// `i = a` it always holds), that is `N_i |D_a| - N_a |D_i| <= ONE |D_a|`,
 /// whose left side is `e_ia + 1` for `i < a` and `-(e_ai + 1)` for `i > a`:
-/// no product beyond those the walk keeps. An axis that does not move never
-/// bounds the entry (its pairs hold constants, not differences).
+/// no product beyond those the walk keeps. An axis that does not move
+/// (`ONE |D| = 0`) never bounds the entry (its pairs hold constants, not
+/// differences).
 #[inline]
-fn entered_before_exit([e01, e02, e12]: [i64; 3], abs_d: [i64; 3], inc: [i64; 3], next: usize) -> bool {
-    let [d0, d1, d2] = abs_d;
+fn entered_before_exit([e01, e02, e12]: [i64; 3], inc: [i64; 3], next: usize) -> bool {
     let [i0, i1, i2] = inc;
     // `e_ia + 1 <= inc_a` and `-(e_ai + 1) <= inc_a`; an `e` of a moving pair
     // is under 2^62 in magnitude and `inc` under 2^47, so neither side wraps.
     let before = |e: i64, inc: i64| e < inc;
     let after = |e: i64, inc: i64| e + inc >= -1;
     match next {
-        0 => (d1 == 0 || after(e01, i0)) && (d2 == 0 || after(e02, i0)),
-        1 => (d0 == 0 || before(e01, i1)) && (d2 == 0 || after(e12, i1)),
-        _ => (d0 == 0 || before(e02, i2)) && (d1 == 0 || before(e12, i2)),
+        0 => (i1 == 0 || after(e01, i0)) && (i2 == 0 || after(e02, i0)),
+        1 => (i0 == 0 || before(e01, i1)) && (i2 == 0 || after(e12, i1)),
+        _ => (i0 == 0 || before(e02, i2)) && (i1 == 0 || before(e12, i2)),
     }
 }
 
