@@ -1,7 +1,7 @@
 //! Framing: `0x00 ++ COBS(postcard(frame) ++ [ack] ++ crc32c_le) ++ 0x00`.
 //!
-//! `ack` is the optional piggybacked acknowledgement ([`Frame::ack`]), a
-//! postcard `u16` after the body: present exactly when bytes remain between
+//! `ack` is the optional piggybacked acknowledgement ([`Frame::ack`]), one
+//! byte ([`Seq`]) after the body: present exactly when bytes remain between
 //! the body and the CRC.
 //!
 //! The leading zero means a frame cut short by a lost byte run damages only
@@ -10,7 +10,7 @@
 //! caught. [`FrameDecoder`] never panics and resynchronises on the next zero byte
 //! after garbage, a truncated frame or an oversize one.
 
-use crate::message::{Frame, Message};
+use crate::message::{Frame, Message, Seq};
 use crate::{cobs, crc32c};
 use postcard::experimental::max_size::MaxSize;
 use serde::Deserialize;
@@ -70,7 +70,7 @@ pub fn encode_frame(frame: &Frame, out: &mut [u8]) -> Result<usize, EncodeError>
 /// [`encode_frame`] of the frame `seq`, `msg` and `ack` would make, without
 /// the frame: a `Frame` holds a whole `Message`, as large as a ray with its
 /// hit, which a control frame (an acknowledgement) would copy for nothing.
-pub fn encode_parts(seq: u16, msg: &Message, ack: Option<u16>, out: &mut [u8]) -> Result<usize, EncodeError> {
+pub fn encode_parts(seq: Seq, msg: &Message, ack: Option<Seq>, out: &mut [u8]) -> Result<usize, EncodeError> {
     const SMALL: EncodeError = EncodeError::BufferTooSmall;
     // out = [0, code, payload.., 0]; the payload may use at most what is left.
     let room = out.len().saturating_sub(3).min(MAX_PAYLOAD_LEN);
@@ -224,7 +224,7 @@ fn decode_payload(encoded: &mut [u8]) -> Result<Frame, DecodeError> {
     // LLVM may take out of line (it did when `Hello` grew a field), handing
     // the message back through memory: 330 more instructions a frame.
     let mut de = postcard::Deserializer::from_bytes(body);
-    let seq = u16::deserialize(&mut de).map_err(|_| DecodeError::Body)?;
+    let seq = Seq::deserialize(&mut de).map_err(|_| DecodeError::Body)?;
     let msg = Message::deserialize(&mut de).map_err(|_| DecodeError::Body)?;
     let mut frame = Frame::new(seq, msg);
     match de.finalize() {
@@ -238,8 +238,8 @@ fn decode_payload(encoded: &mut [u8]) -> Result<Frame, DecodeError> {
 }
 
 /// Decodes the acknowledgement trailer, which must fill `trailer` exactly.
-fn decode_ack(trailer: &[u8]) -> Result<u16, DecodeError> {
-    match postcard::take_from_bytes::<u16>(trailer) {
+fn decode_ack(trailer: &[u8]) -> Result<Seq, DecodeError> {
+    match postcard::take_from_bytes::<Seq>(trailer) {
         Ok((ack, [])) => Ok(ack),
         _ => Err(DecodeError::Body),
     }

@@ -14,12 +14,19 @@ use serde::{Deserialize, Serialize};
 use crate::board::{BoardInfo, PeerNote};
 pub use crate::retirements::{Retire, Retirements};
 
+/// A frame's sequence number on its link. It wraps at 2^8: a window holds
+/// far fewer frames than half of that, and a link never reorders frames, so
+/// eight bits tell every frame in flight apart. One byte on the wire, where
+/// a `u16` took postcard's varint two or three bytes once a link had carried
+/// 128 frames, in every data frame and again in every acknowledgement.
+pub type Seq = u8;
+
 /// One frame on a link: a per-link sequence number, the message it carries,
 /// and perhaps an acknowledgement of the opposite direction's frames.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
 pub struct Frame {
-    /// Sequence number of this frame on its link (wraps at 2^16).
-    pub seq: u16,
+    /// Sequence number of this frame on its link.
+    pub seq: Seq,
     /// The message.
     pub msg: Message,
     /// A cumulative acknowledgement riding on this frame, as [`Message::Ack`]
@@ -29,12 +36,12 @@ pub struct Frame {
     /// as before, so peers of other protocol versions still read each
     /// other's hellos.
     #[serde(skip)]
-    pub ack: Option<u16>,
+    pub ack: Option<Seq>,
 }
 
 impl Frame {
     /// A frame with no acknowledgement riding on it.
-    pub const fn new(seq: u16, msg: Message) -> Self {
+    pub const fn new(seq: Seq, msg: Message) -> Self {
         Self { seq, msg, ack: None }
     }
 }
@@ -75,9 +82,9 @@ pub enum Message {
     /// A node reports a failure to the host. Errors are values, never panics.
     Error(ErrorReport),
     /// Link layer: frames up to and including `seq` were received intact.
-    Ack(u16),
+    Ack(Seq),
     /// Link layer: frame `seq` was lost or corrupted; send again from it.
-    Nak(u16),
+    Nak(Seq),
     /// Node to node: a [`RayMsg`] was admitted or refused (the sender keeps it until admitted).
     RayReply(RayReply),
     /// Node to node: a pool slot freed; retry rays this node refused.

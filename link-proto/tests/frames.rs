@@ -182,8 +182,8 @@ fn arb_message() -> impl Strategy<Value = Message> {
         any::<u32>().prop_map(|frame| Message::Finish(Finish { frame })),
         (any::<u16>(), arb_error_code(), any::<u32>(), any::<u32>())
             .prop_map(|(node, code, a, b)| Message::Error(ErrorReport { node, code, a, b })),
-        any::<u16>().prop_map(Message::Ack),
-        any::<u16>().prop_map(Message::Nak),
+        any::<Seq>().prop_map(Message::Ack),
+        any::<Seq>().prop_map(Message::Nak),
         (any::<u16>(), any::<bool>())
             .prop_map(|(tag, accepted)| Message::RayReply(RayReply { tag, accepted })),
         Just(Message::Space),
@@ -223,7 +223,7 @@ fn arb_board() -> impl Strategy<Value = BoardInfo> {
 }
 
 fn arb_frame() -> impl Strategy<Value = Frame> {
-    (any::<u16>(), arb_message(), any::<Option<u16>>()).prop_map(|(seq, msg, ack)| Frame { seq, msg, ack })
+    (any::<Seq>(), arb_message(), any::<Option<Seq>>()).prop_map(|(seq, msg, ack)| Frame { seq, msg, ack })
 }
 
 proptest! {
@@ -389,10 +389,37 @@ fn largest_message_fits_the_frame_buffer() {
         class: u16::MAX,
         tag: u16::MAX,
     };
-    let frame = Frame { seq: u16::MAX, msg: Message::Ray(ray), ack: Some(u16::MAX) };
+    let frame = Frame { seq: Seq::MAX, msg: Message::Ray(ray), ack: Some(Seq::MAX) };
     let bytes = encode(&frame);
     assert!(bytes.len() <= MAX_FRAME_LEN);
     println!("largest ray frame {} bytes, MAX_FRAME_LEN {}", bytes.len(), MAX_FRAME_LEN);
+}
+
+#[test]
+fn a_sequence_number_and_an_acknowledgement_take_a_byte_each_whatever_their_value() {
+    // postcard's varint took two bytes for a `u16` from 128 on, three from
+    // 16 384: every frame of a long stream carried up to four bytes more.
+    let ray = Message::GrantedRay(RayMsg {
+        origin: [5 << 16, 7 << 16, -(3 << 16)],
+        dir: [1 << 29, 0, 0],
+        cell: [3, 4, 5],
+        pixel: 4242,
+        weight: [32768; 3],
+        credit: 1 << 32,
+        kind: RayKind::Reflected,
+        depth: 1,
+        ignore: Some(17),
+        best: None,
+        t_max: None,
+        class: 2,
+        tag: 0,
+    });
+    let small = encode(&Frame { seq: 0, msg: ray.clone(), ack: Some(0) }).len();
+    for seq in [127, 128, 200, Seq::MAX] {
+        assert_eq!(encode(&Frame { seq, msg: ray.clone(), ack: Some(seq) }).len(), small, "seq {seq}");
+    }
+    let bare = encode(&Frame::new(Seq::MAX, ray)).len();
+    assert_eq!(small, bare + 1, "the acknowledgement trailer is one byte");
 }
 
 /// A frame's payload (COBS input) built by hand: `body ++ trailer ++ crc`.
@@ -412,22 +439,22 @@ fn payload_frame(body: &[u8], trailer: &[u8]) -> Vec<u8> {
 fn a_frame_without_a_trailer_decodes_as_before_the_trailer_existed() {
     // The body alone, as a peer that predates the acknowledgement trailer writes it.
     let mut buf = [0u8; 8];
-    let body = postcard::to_slice(&(7u16, Message::Space), &mut buf).unwrap().to_vec();
+    let body = postcard::to_slice(&(7u8, Message::Space), &mut buf).unwrap().to_vec();
     let mut dec = FrameDecoder::new();
     let got = decode_all(&mut dec, &payload_frame(&body, &[]));
     assert_eq!(got, vec![Ok(Frame::new(7, Message::Space))]);
-    // The same with a trailer: 300 is the two-byte varint [0xac, 0x02].
-    let got = decode_all(&mut dec, &payload_frame(&body, &[0xac, 0x02]));
-    assert_eq!(got, vec![Ok(Frame { seq: 7, msg: Message::Space, ack: Some(300) })]);
+    // The same with a trailer: one byte, whatever its value.
+    let got = decode_all(&mut dec, &payload_frame(&body, &[0xac]));
+    assert_eq!(got, vec![Ok(Frame { seq: 7, msg: Message::Space, ack: Some(0xac) })]);
 }
 
 #[test]
 fn a_trailer_that_is_not_exactly_one_acknowledgement_is_refused() {
     let mut buf = [0u8; 8];
-    let body = postcard::to_slice(&(7u16, Message::Space), &mut buf).unwrap().to_vec();
+    let body = postcard::to_slice(&(7u8, Message::Space), &mut buf).unwrap().to_vec();
     let mut dec = FrameDecoder::new();
-    // An unfinished varint, one byte too many, and a value above u16::MAX.
-    for trailer in [&[0x80u8][..], &[0x01, 0x02], &[0xff, 0xff, 0x04]] {
+    // One byte too many, and a `u16` varint as the trailer was before `Seq`.
+    for trailer in [&[0x01u8, 0x02][..], &[0xac, 0x02], &[0xff, 0xff, 0x03]] {
         let got = decode_all(&mut dec, &payload_frame(&body, trailer));
         assert_eq!(got, vec![Err(DecodeError::Body)], "trailer {trailer:02x?}");
     }

@@ -25,13 +25,15 @@
 
 use heapless::Deque;
 use link_proto::{
-    DecodeError, Frame, FrameDecoder, MAX_FRAME_LEN, Message, PROTOCOL_VERSION, encode_frame, encode_parts,
+    DecodeError, Frame, FrameDecoder, MAX_FRAME_LEN, Message, PROTOCOL_VERSION, Seq, encode_frame,
+    encode_parts,
 };
 
-/// Sequence numbers wrap at 2^16; a window is far smaller, so `a` precedes
-/// `b` when the forward distance from `a` to `b` is less than half the space.
-fn precedes(a: u16, b: u16) -> bool {
-    a != b && b.wrapping_sub(a) < 0x8000
+/// Sequence numbers wrap at 2^8; a window is far smaller (see
+/// [`Channel::new`]), so `a` precedes `b` when the forward distance from `a`
+/// to `b` is less than half the space.
+fn precedes(a: Seq, b: Seq) -> bool {
+    a != b && b.wrapping_sub(a) < 0x80
 }
 
 /// Doublings of the resend time-out after time-outs in a row (16 times the
@@ -90,7 +92,7 @@ pub struct Channel<const W: usize> {
     /// Unacknowledged data frames, oldest first.
     unacked: Deque<Frame, W>,
     /// Sequence number of the next new data frame.
-    next_seq: u16,
+    next_seq: Seq,
     /// Index in `unacked` of the next frame to write.
     resend_from: usize,
     /// Frames at the front of `unacked` written at least once.
@@ -98,7 +100,7 @@ pub struct Channel<const W: usize> {
     /// Last time the window made progress (an ack, or a send from its start).
     progress_at: u64,
     /// Sequence number expected next from the peer.
-    expected: u16,
+    expected: Seq,
     /// An ack or nak to send (control frames are not sequenced).
     control_due: Owed,
     /// An ack moved the window since the last transmit.
@@ -142,6 +144,9 @@ impl<const W: usize> Channel<W> {
     /// A channel of incarnation 0 that resends after `timeout` ticks without
     /// progress. Set the incarnation before the first transmit.
     pub const fn new(timeout: u64) -> Self {
+        // Go-back-N tells new frames from old by sequence numbers only while
+        // the window is under half their space.
+        const { assert!(W < 0x80, "a window must be under half the sequence space") };
         Self {
             unacked: Deque::new(),
             next_seq: 0,
@@ -310,7 +315,7 @@ impl<const W: usize> Channel<W> {
     fn restart_stream(&mut self) {
         self.peer_restarted = true;
         self.stats.peer_restarts += 1;
-        let mut seq = 0u16;
+        let mut seq: Seq = 0;
         for frame in self.unacked.iter_mut() {
             frame.seq = seq;
             seq = seq.wrapping_add(1);
@@ -323,7 +328,7 @@ impl<const W: usize> Channel<W> {
     }
 
     /// Drops every frame up to and including `seq` from the window.
-    fn acknowledged(&mut self, seq: u16) {
+    fn acknowledged(&mut self, seq: Seq) {
         while let Some(front) = self.unacked.front() {
             if !(front.seq == seq || precedes(front.seq, seq)) {
                 break;
@@ -473,8 +478,8 @@ impl<const W: usize> Channel<W> {
 #[repr(u8)]
 enum Owed {
     Nothing = 0,
-    Ack(u16) = 1,
-    Nak(u16) = 2,
+    Ack(Seq) = 1,
+    Nak(Seq) = 2,
 }
 
 impl Owed {

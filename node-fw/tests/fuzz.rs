@@ -167,8 +167,8 @@ fn arb_message() -> impl Strategy<Value = Message> {
         1 => (prop_oneof![Just(PROTOCOL_VERSION), any::<u16>()], prop_oneof![Just(0u32), any::<u32>()]).prop_map(|(version, session)| {
             Message::Hello(Hello { version, node: 1, capacity: Fw::capacity(), session, ..Hello::host() })
         }),
-        1 => any::<u16>().prop_map(Message::Ack),
-        1 => any::<u16>().prop_map(Message::Nak),
+        1 => any::<link_proto::Seq>().prop_map(Message::Ack),
+        1 => any::<link_proto::Seq>().prop_map(Message::Nak),
         1 => any::<u32>().prop_map(Message::Sync),
         1 => any::<u32>().prop_map(Message::SyncAck),
     ]
@@ -214,7 +214,7 @@ proptest! {
     /// it writes per transmit stays within its window and control frames.
     #[test]
     fn channel_survives_arbitrary_frames(
-        frames in proptest::collection::vec((any::<u16>(), arb_message()), 1..80),
+        frames in proptest::collection::vec((any::<link_proto::Seq>(), arb_message()), 1..80),
         sends in 0usize..8,
     ) {
         let mut channel: node_fw::reliable::Channel<4> = node_fw::reliable::Channel::new(3);

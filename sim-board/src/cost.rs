@@ -42,34 +42,34 @@ impl Default for CostModel {
     /// mps2-an385 (`scripts/firmware.sh` runs the `kernels` binary under
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
     /// test) 107.4; a sphere test over a mostly-missing list 215.0; a walk's
-    /// set-up (the received ray's line checked, the walk resumed) 297.5; a
-    /// shaded hit with one light and a mirror 7 009.2 (the surface and both
+    /// set-up (the received ray's line checked, the walk resumed) 296.5; a
+    /// shaded hit with one light and a mirror 7 012.4 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for
-    /// the children it spawns later); an initial
-    /// ray (pixel line, ray, entry cube) 2 825.9. Messages through a reliable
-    /// channel, whose acknowledgements ride on data going back or, with none,
-    /// go alone once per half window (four frames on a board): one end of a
-    /// hop (the ray in its compact wire form, the reply carrying the ray's
-    /// ack, the reply's ack alone every fourth reply) 2 143.9, and of a ray
-    /// reply with its ack alone every fourth time 797.7, which stands for
-    /// every short message; a ray end is charged the difference, 1 346 (the
-    /// UART's bytes are the link model's). One end of a hop on a grant (the
-    /// ray, and an ack alone for every fourth ray) 1 481.1. The rays are half
-    /// primaries from the eye, half reflections (43.5 bytes a frame). A
-    /// node's end of a retirement (the host's acks taken) 1 465.7 with one
-    /// record, 2 329.0 with three: 432 a further record.
+    /// the children it spawns later); an initial ray (pixel line, ray, entry
+    /// cube) 2 828.0. Messages through a reliable channel, whose
+    /// acknowledgements ride on data going back or, with none, go alone once
+    /// per half window (four frames on a board): one end of a hop (the ray in
+    /// its compact wire form, the reply carrying the ray's ack, the reply's
+    /// ack alone every fourth reply) 2 025.1, and of a ray reply with its ack
+    /// alone every fourth time 753.4, which stands for every short message; a
+    /// ray end is charged the difference, 1 272 (the UART's bytes are the link
+    /// model's). One end of a hop on a grant (the ray, and an ack alone for
+    /// every fourth ray) 1 434.2. The rays are half primaries from the eye,
+    /// half reflections (43.5 bytes a frame). A node's end of a retirement
+    /// (the host's acks taken) 1 421.7 with one record, 2 287.7 with three:
+    /// 433 a further record.
     fn default() -> Self {
         Self {
             cube_step: 108,
             sphere_test: 215,
-            trace: 298,
-            shade: 7_009,
-            create: 2_826,
-            ray_message: 1_346,
-            granted_ray: 1_481,
-            short_message: 798,
-            retire_message: 1_466,
-            retire_record: 432,
+            trace: 297,
+            shade: 7_012,
+            create: 2_828,
+            ray_message: 1_272,
+            granted_ray: 1_434,
+            short_message: 753,
+            retire_message: 1_422,
+            retire_record: 433,
             pass: 0,
         }
     }

@@ -398,7 +398,7 @@ fn frame_parts(timer: &mut Timer, rays: &[RayMsg]) -> [(&'static str, u64, u64);
     let mut work = [0u8; MAX_FRAME_LEN];
     let (mut encode, mut decode, mut crc, mut cobs_enc, mut cobs_dec, mut bytes) = (0, 0, 0, 0, 0, 0);
     let mut n = 0u64;
-    for round in 0..20u16 {
+    for round in 0..20u8 {
         for ray in rays {
             let frame = link_proto::Frame::new(round, Message::Ray(*ray));
             let start = timer.ticks();
