@@ -10,8 +10,8 @@
 //! caught. [`FrameDecoder`] never panics and resynchronises on the next zero byte
 //! after garbage, a truncated frame or an oversize one.
 
-use crate::message::{Frame, Message, Seq};
-use crate::{cobs, crc32c};
+use crate::message::{Frame, Message, RayMsg, Seq};
+use crate::{cobs, crc32c, ray_wire};
 use postcard::experimental::max_size::MaxSize;
 use serde::Deserialize;
 
@@ -75,10 +75,7 @@ pub fn encode_parts(seq: Seq, msg: &Message, ack: Option<Seq>, out: &mut [u8]) -
     // out = [0, code, payload.., 0]; the payload may use at most what is left.
     let room = out.len().saturating_sub(3).min(MAX_PAYLOAD_LEN);
     let payload = out.get_mut(2..2 + room).ok_or(SMALL)?;
-    // The body is the frame's postcard serialization: its sequence number, then its message.
-    let seq_len = postcard::to_slice(&seq, payload).map_err(|_| SMALL)?.len();
-    let msg_out = payload.get_mut(seq_len..).ok_or(SMALL)?;
-    let mut body_len = seq_len + postcard::to_slice(msg, msg_out).map_err(|_| SMALL)?.len();
+    let mut body_len = encode_body(seq, msg, payload)?;
     if let Some(ack) = ack {
         let trailer = payload.get_mut(body_len..).ok_or(SMALL)?;
         body_len += postcard::to_slice(&ack, trailer).map_err(|_| SMALL)?.len();
@@ -91,6 +88,41 @@ pub fn encode_parts(seq: Seq, msg: &Message, ack: Option<Seq>, out: &mut [u8]) -
     *out.first_mut().ok_or(SMALL)? = 0;
     *out.get_mut(2 + payload_len).ok_or(SMALL)? = 0;
     Ok(payload_len + 3)
+}
+
+/// postcard's variant index of [`Message::Ray`], the first byte of its body
+/// after the sequence number (a test holds it to postcard's).
+const RAY_TAG: u8 = 7;
+/// The same of [`Message::GrantedRay`].
+const GRANTED_RAY_TAG: u8 = 24;
+
+/// Writes the frame's body, its postcard serialization (its sequence number,
+/// then its message), at the start of `payload`; its length.
+fn encode_body(seq: Seq, msg: &Message, payload: &mut [u8]) -> Result<usize, EncodeError> {
+    match msg {
+        Message::Ray(ray) => encode_ray_body(seq, RAY_TAG, ray, payload),
+        Message::GrantedRay(ray) => encode_ray_body(seq, GRANTED_RAY_TAG, ray, payload),
+        _ => {
+            let seq_len =
+                postcard::to_slice(&seq, &mut *payload).map_err(|_| EncodeError::BufferTooSmall)?.len();
+            let msg_out = payload.get_mut(seq_len..).ok_or(EncodeError::BufferTooSmall)?;
+            Ok(seq_len + postcard::to_slice(msg, msg_out).map_err(|_| EncodeError::BufferTooSmall)?.len())
+        }
+    }
+}
+
+/// The body of a frame carrying a ray, written as postcard writes it (the
+/// sequence number, the variant's index, the ray's wire form as a byte
+/// string: its length in one varint byte, as `RAY_MAX_LEN < 128`) but with
+/// the ray packed straight into place. Through serde the ray was packed into
+/// a zeroed scratch buffer and copied, and the variant dispatched: a tenth
+/// of a hop's instructions at each end, for the message that is most of the
+/// traffic.
+fn encode_ray_body(seq: Seq, tag: u8, ray: &RayMsg, payload: &mut [u8]) -> Result<usize, EncodeError> {
+    let (head, bytes) = payload.split_at_mut_checked(3).ok_or(EncodeError::BufferTooSmall)?;
+    let n = ray_wire::encode_ray(ray, bytes).ok_or(EncodeError::BufferTooSmall)?;
+    head.copy_from_slice(&[seq, tag, n as u8]);
+    Ok(3 + n)
 }
 
 /// Incremental frame decoder with a fixed buffer.
@@ -129,7 +161,7 @@ impl FrameDecoder {
     /// an `Option` as large as a frame.
     pub fn decode(&mut self, bytes: &mut &[u8]) -> Option<Result<Frame, DecodeError>> {
         while !bytes.is_empty() {
-            let (run, closed, rest) = match first_zero(bytes) {
+            let (run, closed, rest) = match cobs::first_zero(bytes) {
                 Some(at) => {
                     (bytes.get(..at).unwrap_or_default(), true, bytes.get(at + 1..).unwrap_or_default())
                 }
@@ -188,26 +220,6 @@ impl FrameDecoder {
     }
 }
 
-/// The index of the first zero byte of `bytes`: the next delimiter. Four
-/// bytes at a time, as a word with a zero byte among them is told by one
-/// subtraction and two masks (`(w - 0x0101_0101) & !w & 0x8080_8080` is
-/// non-zero exactly when a byte of `w` is zero); a frame's bytes hold no
-/// zero, so the search runs over whole words until the delimiter's. On a
-/// Cortex-M3 this is a third of the instructions of a byte-by-byte search,
-/// which every received byte passes through.
-fn first_zero(bytes: &[u8]) -> Option<usize> {
-    let mut skipped = 0;
-    for word in bytes.chunks_exact(4) {
-        let w = u32::from_le_bytes(word.try_into().unwrap_or([0; 4]));
-        if w.wrapping_sub(0x0101_0101) & !w & 0x8080_8080 != 0 {
-            break;
-        }
-        skipped += 4;
-    }
-    let tail = bytes.get(skipped..)?;
-    tail.iter().position(|&b| b == 0).map(|at| skipped + at)
-}
-
 /// Decodes one COBS payload (delimiters stripped) in place.
 fn decode_payload(encoded: &mut [u8]) -> Result<Frame, DecodeError> {
     let payload = cobs::decode_slice(encoded).ok_or(DecodeError::Cobs)?;
@@ -218,23 +230,30 @@ fn decode_payload(encoded: &mut [u8]) -> Result<Frame, DecodeError> {
     if checksum(body) != u32::from_le_bytes(crc_bytes) {
         return Err(DecodeError::Crc);
     }
-    // Straight from the deserializer: `take_from_bytes` moves the frame
-    // through two more temporaries, each a byte-wise copy on a Cortex-M. And
-    // field by field rather than `Frame::deserialize`, whose sequence access
-    // LLVM may take out of line (it did when `Hello` grew a field), handing
-    // the message back through memory: 330 more instructions a frame.
-    let mut de = postcard::Deserializer::from_bytes(body);
-    let seq = Seq::deserialize(&mut de).map_err(|_| DecodeError::Body)?;
-    let msg = Message::deserialize(&mut de).map_err(|_| DecodeError::Body)?;
-    let mut frame = Frame::new(seq, msg);
-    match de.finalize() {
-        Ok([]) => Ok(frame),
-        Ok(trailer) => {
-            frame.ack = Some(decode_ack(trailer)?);
-            Ok(frame)
+    let (seq, msg, trailer) = match body {
+        // A ray, read as `encode_ray_body` writes it: no serde dispatch.
+        [seq, tag @ (RAY_TAG | GRANTED_RAY_TAG), len @ 0..0x80, rest @ ..] => {
+            let (bytes, trailer) = rest.split_at_checked(usize::from(*len)).ok_or(DecodeError::Body)?;
+            let ray = ray_wire::decode_ray(bytes).ok_or(DecodeError::Body)?;
+            (*seq, if *tag == RAY_TAG { Message::Ray(ray) } else { Message::GrantedRay(ray) }, trailer)
         }
-        Err(_) => Err(DecodeError::Body),
+        _ => {
+            // Straight from the deserializer: `take_from_bytes` moves the frame
+            // through two more temporaries, each a byte-wise copy on a Cortex-M. And
+            // field by field rather than `Frame::deserialize`, whose sequence access
+            // LLVM may take out of line (it did when `Hello` grew a field), handing
+            // the message back through memory: 330 more instructions a frame.
+            let mut de = postcard::Deserializer::from_bytes(body);
+            let seq = Seq::deserialize(&mut de).map_err(|_| DecodeError::Body)?;
+            let msg = Message::deserialize(&mut de).map_err(|_| DecodeError::Body)?;
+            (seq, msg, de.finalize().map_err(|_| DecodeError::Body)?)
+        }
+    };
+    let mut frame = Frame::new(seq, msg);
+    if !trailer.is_empty() {
+        frame.ack = Some(decode_ack(trailer)?);
     }
+    Ok(frame)
 }
 
 /// Decodes the acknowledgement trailer, which must fill `trailer` exactly.
@@ -242,42 +261,5 @@ fn decode_ack(trailer: &[u8]) -> Result<Seq, DecodeError> {
     match postcard::take_from_bytes::<Seq>(trailer) {
         Ok((ack, [])) => Ok(ack),
         _ => Err(DecodeError::Body),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    extern crate std;
-
-    use super::first_zero;
-    use proptest::prelude::*;
-    use std::vec::Vec;
-
-    /// Bytes with zeros sparse or dense, at every offset from a word's start.
-    fn bytes() -> impl Strategy<Value = Vec<u8>> {
-        (proptest::collection::vec(any::<u8>(), 0..40), 0u8..=255)
-            .prop_map(|(v, keep)| v.into_iter().map(|b| if b < keep { b | 1 } else { 0 }).collect())
-    }
-
-    proptest! {
-        #[test]
-        fn the_first_zero_is_the_first_zero_byte(bytes in bytes(), skip in 0usize..4) {
-            let bytes = bytes.get(skip.min(bytes.len())..).unwrap_or_default();
-            prop_assert_eq!(first_zero(bytes), bytes.iter().position(|&b| b == 0));
-        }
-    }
-
-    #[test]
-    fn a_zero_in_each_byte_of_a_word_is_found() {
-        for at in 0..9 {
-            let mut bytes = [0x80u8; 9];
-            bytes[at] = 0;
-            assert_eq!(first_zero(&bytes), Some(at));
-            // 0x01 and 0x80 around it: the masks' borrow cases.
-            bytes[..at].fill(0x01);
-            assert_eq!(first_zero(&bytes), Some(at));
-        }
-        assert_eq!(first_zero(&[0xFF; 11]), None);
-        assert_eq!(first_zero(&[]), None);
     }
 }

@@ -201,6 +201,7 @@ fn put_sphere(w: &mut Writer<'_>, s: &SphereMsg) -> Option<()> {
 /// the one [`encode_ray`] writes. Each form is checked as it is read (a
 /// field written longer than its value needs is refused), which costs a
 /// fraction of choosing the flags again and comparing them.
+#[inline(always)]
 pub fn decode_ray(bytes: &[u8]) -> Option<RayMsg> {
     let mut r = Reader { bytes };
     let flags = r.u8()?;

@@ -240,6 +240,34 @@ proptest! {
         prop_assert_eq!(decode_all(&mut dec, &bytes), vec![Ok(frame)]);
     }
 
+    /// Every frame's payload is its postcard serialization, the trailer and
+    /// the CRC, whichever path wrote it (rays are packed without serde), and
+    /// a payload postcard wrote decodes to the frame.
+    #[test]
+    fn a_frame_is_postcard_under_the_crc(frame in arb_frame(), ray in arb_ray(), granted in any::<bool>()) {
+        let ray_frame = Frame { msg: if granted { Message::GrantedRay(ray) } else { Message::Ray(ray) }, ..frame.clone() };
+        for frame in [frame, ray_frame] {
+            let mut buf = [0u8; 256];
+            let body = postcard::to_slice(&(frame.seq, &frame.msg), &mut buf).unwrap().to_vec();
+            let trailer: Vec<u8> = frame.ack.into_iter().collect();
+            let reference = payload_frame(&body, &trailer);
+            prop_assert_eq!(encode(&frame), reference.clone());
+            prop_assert_eq!(decode_all(&mut FrameDecoder::new(), &reference), vec![Ok(frame)]);
+        }
+    }
+
+    /// Bytes after a ray's wire form that are not one acknowledgement, and a
+    /// ray cut short, are refused.
+    #[test]
+    fn a_ray_body_with_bytes_out_of_place_is_refused(ray in arb_ray(), cut in 1usize..8, extra in 2usize..4) {
+        let mut buf = [0u8; 256];
+        let body = postcard::to_slice(&(3u8, Message::GrantedRay(ray)), &mut buf).unwrap().to_vec();
+        let short = &body[..body.len() - cut.min(body.len() - 3)];
+        prop_assert_eq!(decode_all(&mut FrameDecoder::new(), &payload_frame(short, &[])), vec![Err(DecodeError::Body)]);
+        let long = vec![1u8; extra];
+        prop_assert_eq!(decode_all(&mut FrameDecoder::new(), &payload_frame(&body, &long)), vec![Err(DecodeError::Body)]);
+    }
+
     /// Any change to any single byte (other than the delimiters) is detected, and
     /// the decoder then reads the next frame intact.
     #[test]
