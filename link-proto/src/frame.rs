@@ -10,7 +10,7 @@
 //! caught. [`FrameDecoder`] never panics and resynchronises on the next zero byte
 //! after garbage, a truncated frame or an oversize one.
 
-use crate::message::{Frame, Message, RayMsg, Seq};
+use crate::message::{Frame, Message, RayMsg, RayReply, Seq};
 use crate::{cobs, crc32c, ray_wire};
 use postcard::experimental::max_size::MaxSize;
 use serde::Deserialize;
@@ -95,6 +95,13 @@ pub fn encode_parts(seq: Seq, msg: &Message, ack: Option<Seq>, out: &mut [u8]) -
 const RAY_TAG: u8 = 7;
 /// The same of [`Message::GrantedRay`].
 const GRANTED_RAY_TAG: u8 = 24;
+/// The same of the small messages a link carries most: acknowledgements
+/// alone, and the grants that pass rays.
+const ACK_TAG: u8 = 15;
+const NAK_TAG: u8 = 16;
+const RAY_REPLY_TAG: u8 = 17;
+const SPACE_TAG: u8 = 18;
+const GRANT_TAG: u8 = 23;
 
 /// Writes the frame's body, its postcard serialization (its sequence number,
 /// then its message), at the start of `payload`; its length.
@@ -237,6 +244,17 @@ fn decode_payload(encoded: &mut [u8]) -> Result<Frame, DecodeError> {
             let ray = ray_wire::decode_ray(bytes).ok_or(DecodeError::Body)?;
             (*seq, if *tag == RAY_TAG { Message::Ray(ray) } else { Message::GrantedRay(ray) }, trailer)
         }
+        // The small messages a link carries most, read as postcard writes
+        // them (a grant or a reply's tag under 128 is one varint byte, a
+        // bool a byte 0 or 1): through serde's dispatch each cost a hundred
+        // and more instructions to build.
+        [seq, ACK_TAG, ack, trailer @ ..] => (*seq, Message::Ack(*ack), trailer),
+        [seq, NAK_TAG, nak, trailer @ ..] => (*seq, Message::Nak(*nak), trailer),
+        [seq, SPACE_TAG, trailer @ ..] => (*seq, Message::Space, trailer),
+        [seq, RAY_REPLY_TAG, tag @ 0..0x80, accepted @ 0..=1, trailer @ ..] => {
+            (*seq, Message::RayReply(RayReply { tag: u16::from(*tag), accepted: *accepted == 1 }), trailer)
+        }
+        [seq, GRANT_TAG, n @ 0..0x80, trailer @ ..] => (*seq, Message::Grant(u16::from(*n)), trailer),
         _ => {
             // Straight from the deserializer: `take_from_bytes` moves the frame
             // through two more temporaries, each a byte-wise copy on a Cortex-M. And
