@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Where a kernel's instructions go, function by function, on the emulated
-# Cortex-M3: `hop_granted` (one end of a hop on a grant, the default) or
-# `trace` (a received ray's walk set-up). Builds the `kernels` binary with the
+# Cortex-M3: `hop_granted` (one end of a hop on a grant, the default),
+# `trace` (a received ray's walk set-up) or `reply` (a short message's end). Builds the `kernels` binary with the
 # `profile` feature and PROFILE_KERNEL set (it then runs only that kernel),
 # runs it under QEMU one instruction at a time (-singlestep -d exec), and sums
 # the instructions each function executed from the kernel's entry on, per
@@ -15,7 +15,8 @@ KERNEL=${1:-hop_granted}
 case "$KERNEL" in
     hop_granted) ENTRY=kernels::granted_hops ;;
     trace) ENTRY=kernels::walk_setups ;;
-    *) echo "error: no kernel $KERNEL to profile (hop_granted or trace)" >&2; exit 2 ;;
+    reply) ENTRY=kernels::replies ;;
+    *) echo "error: no kernel $KERNEL to profile (hop_granted, trace or reply)" >&2; exit 2 ;;
 esac
 command -v python3 >/dev/null || { echo "error: python3 is needed to sum the trace" >&2; exit 1; }
 

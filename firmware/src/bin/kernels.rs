@@ -331,6 +331,7 @@ fn granted_hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
 /// Passing a reply to each of `rays` through a reliable channel pair, both
 /// ends and the acks, in frames of their own once per half window (per
 /// message and end, bytes on the UART not included).
+#[cfg_attr(feature = "profile", inline(never))]
 fn replies(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     let (mut a, mut b) = channel_pair();
     let mut wire = (heapless::Vec::new(), [0; MAX_FRAME_LEN]);
@@ -473,7 +474,7 @@ fn memcpy_is_exact() -> bool {
 }
 
 /// With the `profile` feature, only the kernel that `PROFILE_KERNEL` names at
-/// build time (`hop_granted` unless it names `trace`), for
+/// build time (`hop_granted` unless it names `trace` or `reply`), for
 /// scripts/profile-kernel.sh, which traces it from its entry on: what comes
 /// before is set-up.
 fn profile(timer: &mut Timer, out: &mut Out, grid: &Grid) -> ! {
@@ -481,6 +482,7 @@ fn profile(timer: &mut Timer, out: &mut Out, grid: &Grid) -> ! {
     creations(timer, grid, &mut rays);
     let (name, (ticks, n)) = match option_env!("PROFILE_KERNEL") {
         Some("trace") => ("trace", walk_setups(timer, &rays)),
+        Some("reply") => ("reply", replies(timer, &wire_rays(&rays))),
         _ => ("hop_granted", granted_hops(timer, &wire_rays(&rays))),
     };
     let _ = writeln!(out, "kernel {name} {} {n}", per_unit_x100(ticks, n));
