@@ -50,14 +50,14 @@ impl Default for CostModel {
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (four frames on a board): one end of a hop (the ray in
     /// its compact wire form, the reply carrying the ray's ack, the reply's
-    /// ack alone every fourth reply) 1 793.2, and of a ray reply with its ack
-    /// alone every fourth time 771.3, which stands for every short message; a
-    /// ray end is charged the difference, 1 022 (the UART's bytes are the link
+    /// ack alone every fourth reply) 1 748.2, and of a ray reply with its ack
+    /// alone every fourth time 712.0, which stands for every short message; a
+    /// ray end is charged the difference, 1 036 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every fourth ray) 1 199.8. The rays are half primaries from the eye,
+    /// every fourth ray) 1 189.5. The rays are half primaries from the eye,
     /// half reflections (43.5 bytes a frame). A node's end of a retirement
-    /// (the host's acks taken) 1 382.1 with one record, 2 156.2 with three:
-    /// 387 a further record.
+    /// (the host's acks taken) 1 357.0 with one record, 2 132.9 with three:
+    /// 388 a further record.
     fn default() -> Self {
         Self {
             cube_step: 108,
@@ -65,11 +65,11 @@ impl Default for CostModel {
             trace: 297,
             shade: 7_012,
             create: 2_828,
-            ray_message: 1_022,
-            granted_ray: 1_200,
-            short_message: 771,
-            retire_message: 1_382,
-            retire_record: 387,
+            ray_message: 1_036,
+            granted_ray: 1_190,
+            short_message: 712,
+            retire_message: 1_357,
+            retire_record: 388,
             pass: 0,
         }
     }
