@@ -41,35 +41,35 @@ impl Default for CostModel {
     /// Cortex-M3 instructions of the node firmware, measured on the emulated
     /// mps2-an385 (`scripts/firmware.sh` runs the `kernels` binary under
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
-    /// test) 107.4; a sphere test over a mostly-missing list 215.0; a walk's
-    /// set-up (the received ray's line checked, the walk resumed) 296.5; a
-    /// shaded hit with one light and a mirror 7 012.4 (the surface and both
+    /// test) 109.1; a sphere test over a mostly-missing list 213.0; a walk's
+    /// set-up (the received ray's line checked, the walk resumed) 277.7; a
+    /// shaded hit with one light and a mirror 6 941.3 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for
     /// the children it spawns later); an initial ray (pixel line, ray, entry
-    /// cube) 2 828.0. Messages through a reliable channel, whose
+    /// cube) 2 784.6. Messages through a reliable channel, whose
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (four frames on a board): one end of a hop (the ray in
     /// its compact wire form, the reply carrying the ray's ack, the reply's
-    /// ack alone every fourth reply) 1 748.2, and of a ray reply with its ack
-    /// alone every fourth time 712.0, which stands for every short message; a
-    /// ray end is charged the difference, 1 036 (the UART's bytes are the link
+    /// ack alone every fourth reply) 1 674.1, and of a ray reply with its ack
+    /// alone every fourth time 671.0, which stands for every short message; a
+    /// ray end is charged the difference, 1 003 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every fourth ray) 1 189.5. The rays are half primaries from the eye,
-    /// half reflections (43.5 bytes a frame). A node's end of a retirement
-    /// (the host's acks taken) 1 357.0 with one record, 2 132.9 with three:
-    /// 388 a further record.
+    /// every fourth ray) 1 144.1. The rays are half primaries from the eye,
+    /// half reflections from inside the grid (41.0 bytes a frame). A node's end of a retirement
+    /// (the host's acks taken) 1 378.2 with one record, 2 162.4 with three:
+    /// 392 a further record.
     fn default() -> Self {
         Self {
-            cube_step: 108,
-            sphere_test: 215,
-            trace: 297,
-            shade: 7_012,
-            create: 2_828,
-            ray_message: 1_036,
-            granted_ray: 1_190,
-            short_message: 712,
-            retire_message: 1_357,
-            retire_record: 388,
+            cube_step: 109,
+            sphere_test: 213,
+            trace: 278,
+            shade: 6_941,
+            create: 2_785,
+            ray_message: 1_003,
+            granted_ray: 1_144,
+            short_message: 671,
+            retire_message: 1_378,
+            retire_record: 392,
             pass: 0,
         }
     }
