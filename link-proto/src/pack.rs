@@ -53,6 +53,10 @@ impl Reader<'_> {
     pub(crate) fn u16(&mut self) -> Option<u16> {
         self.take().map(u16::from_le_bytes)
     }
+    /// Three little-endian bytes, widened.
+    pub(crate) fn u24(&mut self) -> Option<u32> {
+        self.take().map(|[a, b, c]| u32::from_le_bytes([a, b, c, 0]))
+    }
     pub(crate) fn u32(&mut self) -> Option<u32> {
         self.take().map(u32::from_le_bytes)
     }

@@ -11,16 +11,20 @@
 //!   2^16 two bytes each, else four;
 //! - credit of exactly 2^32 (a primary ray's) takes none, under 2^40 five
 //!   bytes, else eight;
-//! - cells under 256 (every grid cell) one byte each, else two;
+//! - any other origin inside the grid's first 256 cubes (every reflected or
+//!   shadow ray's: it starts on a sphere the grid holds) three bytes a
+//!   component, else four;
+//! - cells under 256 (every grid cell) one byte each and a pixel under 2^24
+//!   (every pixel of an image up to 4096x4096) three bytes, else two and four;
 //! - a class under 256 one byte, else two; a zero tag (every ray passed on a
-//!   grant) none; depth under 7 rides in the flags.
+//!   grant) none; depth under 3 rides in the flags.
 //!
 //! Any [`RayMsg`] round-trips, and each has exactly one encoding: bytes that
 //! are not the encoder's choice for some ray are refused, never read as
 //! something else.
 //!
-//! Layout: flags, forms, \[depth\], \[origin (3 x i32)\], direction (3 x i32),
-//! cell, pixel (u32), \[weights\], \[credit\], class, \[tag\], then `ignore`
+//! Layout: flags, forms, \[depth\], \[origin\], direction (3 x i32), cell,
+//! pixel, \[weights\], \[credit\], class, \[tag\], then `ignore`
 //! (u16), `t_max` (i32) and `best` (t as i32, then the sphere) when present.
 
 use serde::de::{Error as _, Visitor};
@@ -54,10 +58,18 @@ const CREDIT_MASK: u8 = 0b11 << CREDIT_SHIFT;
 const CREDIT_PRIMARY: u8 = 0;
 const CREDIT_SHORT: u8 = 1 << CREDIT_SHIFT;
 const CREDIT_LONG: u8 = 2 << CREDIT_SHIFT;
-const WIDE_CELL: u8 = 1 << 4;
-const DEPTH_SHIFT: u32 = 5;
-/// A depth this large or larger follows in a byte of its own.
-const DEPTH_ESCAPE: u8 = 7;
+/// Cells two bytes each and the pixel four, for a cell or a pixel out of the short forms.
+const WIDE: u8 = 1 << 4;
+/// The origin in three bytes a component.
+const SHORT_ORIGIN: u8 = 1 << 5;
+const DEPTH_SHIFT: u32 = 6;
+/// A depth this large or larger follows in a byte of its own. Depths 0 to
+/// 2 (a primary ray, its shadow rays, one reflection and its shadow rays)
+/// are most of the traffic.
+const DEPTH_ESCAPE: u8 = 3;
+
+/// Short origin components and pixels are under this: three bytes.
+const SHORT_LIMIT: u32 = 1 << 24;
 
 /// Full strength, Q1.15.
 const FULL_WEIGHT: u32 = 32768;
@@ -121,8 +133,20 @@ fn flags_of(ray: &RayMsg) -> [u8; 2] {
         c if c < 1 << 40 => CREDIT_SHORT,
         _ => CREDIT_LONG,
     };
-    let cell = if ray.cell.iter().any(|&c| c > 0xff) { WIDE_CELL } else { 0 };
-    [flags, weights | credit | cell | (ray.depth.min(DEPTH_ESCAPE) << DEPTH_SHIFT)]
+    let wide = if ray.cell.iter().any(|&c| c > 0xff) || ray.pixel >= SHORT_LIMIT { WIDE } else { 0 };
+    let origin = if short_origin(ray.origin) { SHORT_ORIGIN } else { 0 };
+    [flags, weights | credit | wide | origin | (ray.depth.min(DEPTH_ESCAPE) << DEPTH_SHIFT)]
+}
+
+/// Whether every component of `origin` fits three bytes (the eye's do not).
+fn short_origin(origin: [i32; 3]) -> bool {
+    origin.iter().all(|&c| (c as u32) < SHORT_LIMIT)
+}
+
+/// The low three bytes of `v`.
+fn three_bytes(v: u32) -> [u8; 3] {
+    let [a, b, c, _] = v.to_le_bytes();
+    [a, b, c]
 }
 
 /// Packs `ray` into `out`; the length written, or `None` if `out` is shorter
@@ -134,7 +158,11 @@ pub fn encode_ray(ray: &RayMsg, out: &mut [u8]) -> Option<usize> {
     if ray.depth >= DEPTH_ESCAPE {
         w.put(&[ray.depth])?;
     }
-    if flags & AT_EYE == 0 {
+    if forms & SHORT_ORIGIN != 0 {
+        for v in ray.origin {
+            w.put(&three_bytes(v as u32))?;
+        }
+    } else if flags & AT_EYE == 0 {
         for v in ray.origin {
             w.put(&v.to_le_bytes())?;
         }
@@ -142,14 +170,15 @@ pub fn encode_ray(ray: &RayMsg, out: &mut [u8]) -> Option<usize> {
     for v in ray.dir {
         w.put(&v.to_le_bytes())?;
     }
-    for c in ray.cell {
-        if forms & WIDE_CELL != 0 {
+    if forms & WIDE != 0 {
+        for c in ray.cell {
             w.put(&c.to_le_bytes())?;
-        } else {
-            w.put(&[c as u8])?;
         }
+        w.put(&ray.pixel.to_le_bytes())?;
+    } else {
+        w.put(&ray.cell.map(|c| c as u8))?;
+        w.put(&three_bytes(ray.pixel))?;
     }
-    w.put(&ray.pixel.to_le_bytes())?;
     for v in ray.weight {
         match forms & WEIGHTS_MASK {
             WEIGHTS_SHORT => w.put(&(v as u16).to_le_bytes())?,
@@ -211,14 +240,19 @@ pub fn decode_ray(bytes: &[u8]) -> Option<RayMsg> {
         DEPTH_ESCAPE => r.u8().filter(|&d| d >= DEPTH_ESCAPE)?,
         d => d,
     };
-    let origin = if flags & AT_EYE != 0 { ORIGIN_AT_EYE } else { r.i32x3().filter(|&o| !at_eye(o))? };
-    let dir = r.i32x3()?;
-    let cell = if forms & WIDE_CELL != 0 {
-        Some([r.u16()?, r.u16()?, r.u16()?]).filter(|c| c.iter().any(|&c| c > 0xff))?
-    } else {
-        [u16::from(r.u8()?), u16::from(r.u8()?), u16::from(r.u8()?)]
+    let origin = match (flags & AT_EYE != 0, forms & SHORT_ORIGIN != 0) {
+        (true, false) => ORIGIN_AT_EYE,
+        (false, true) => [r.u24()? as i32, r.u24()? as i32, r.u24()? as i32],
+        (false, false) => r.i32x3().filter(|&o| !at_eye(o) && !short_origin(o))?,
+        (true, true) => return None,
     };
-    let pixel = r.u32()?;
+    let dir = r.i32x3()?;
+    let (cell, pixel) = if forms & WIDE != 0 {
+        Some(([r.u16()?, r.u16()?, r.u16()?], r.u32()?))
+            .filter(|(c, p)| c.iter().any(|&c| c > 0xff) || *p >= SHORT_LIMIT)?
+    } else {
+        ([u16::from(r.u8()?), u16::from(r.u8()?), u16::from(r.u8()?)], r.u24()?)
+    };
     let weight = match forms & WEIGHTS_MASK {
         WEIGHTS_FULL => [FULL_WEIGHT; 3],
         WEIGHTS_SHORT => Some([u32::from(r.u16()?), u32::from(r.u16()?), u32::from(r.u16()?)])
@@ -332,11 +366,28 @@ mod tests {
     }
 
     #[test]
-    fn a_primary_ray_on_a_grant_takes_22_bytes() {
+    fn a_primary_ray_on_a_grant_takes_21_bytes() {
         let mut buf = [0u8; RAY_MAX_LEN];
-        // Two flag bytes, 12 of direction, 3 of cell, 4 of pixel, 1 of class.
-        assert_eq!(encode_ray(&primary(), &mut buf), Some(2 + 12 + 3 + 4 + 1));
-        assert_eq!(decode_ray(&buf[..22]), Some(primary()));
+        // Two flag bytes, 12 of direction, 3 of cell, 3 of pixel, 1 of class.
+        assert_eq!(encode_ray(&primary(), &mut buf), Some(2 + 12 + 3 + 3 + 1));
+        assert_eq!(decode_ray(&buf[..21]), Some(primary()));
+    }
+
+    #[test]
+    fn a_shadow_ray_from_a_sphere_in_the_grid_takes_three_bytes_an_origin_component() {
+        let mut buf = [0u8; RAY_MAX_LEN];
+        let r = RayMsg { origin: [0, (1 << 24) - 1, 5 << 16], cell: [0, 255, 5], tag: 0, ..ray() };
+        // Flags, forms, origin 9, direction 12, cell 3, pixel 3, weights 6
+        // (one is over 2^15 but under 2^16), credit 5, class, ignore 2, t_max 4.
+        let n = encode_ray(&r, &mut buf).unwrap();
+        assert_eq!(n, 2 + 9 + 12 + 3 + 3 + 6 + 5 + 1 + 2 + 4);
+        assert_eq!(buf[2..11], [0, 0, 0, 0xff, 0xff, 0xff, 0, 0, 5]);
+        assert_eq!(decode_ray(&buf[..n]), Some(r));
+        // One component at 2^24 or below zero, and the origin takes four bytes each.
+        for far in [1 << 24, -1] {
+            let r = RayMsg { origin: [0, far, 5 << 16], ..r };
+            assert_eq!(encode_ray(&r, &mut buf), Some(n + 3));
+        }
     }
 
     #[test]
@@ -344,20 +395,37 @@ mod tests {
         let mut buf = [0u8; RAY_MAX_LEN];
         let r = RayMsg { cell: [1, 2, 3], ..ray() };
         let n = encode_ray(&r, &mut buf).unwrap();
-        // The same ray with its cells written wide although they fit a byte.
+        // The same ray with its cells and pixel written wide although they fit.
         let mut wide = buf[..2 + 24].to_vec();
-        wide[1] |= WIDE_CELL;
+        wide[1] |= WIDE;
         for c in r.cell {
             wide.extend_from_slice(&c.to_le_bytes());
         }
-        wide.extend_from_slice(&buf[2 + 24 + 3..n]);
+        wide.extend_from_slice(&r.pixel.to_le_bytes());
+        wide.extend_from_slice(&buf[2 + 24 + 3 + 3..n]);
         assert_eq!(decode_ray(&wide), None);
+        // An origin in the grid written long.
+        let g = RayMsg { origin: [1, 2, 3], ..r };
+        let n = encode_ray(&g, &mut buf).unwrap();
+        let mut long = buf[..2].to_vec();
+        long[1] &= !SHORT_ORIGIN;
+        for v in g.origin {
+            long.extend_from_slice(&v.to_le_bytes());
+        }
+        long.extend_from_slice(&buf[2 + 9..n]);
+        assert_eq!(decode_ray(&long), None);
+        // Both at the eye and short.
+        let mut both = buf[..n].to_vec();
+        both[0] |= AT_EYE;
+        assert_eq!(decode_ray(&both), None);
+        both.drain(2..11);
+        assert_eq!(decode_ray(&both), None);
         // A full-strength primary ray with its weights written out.
         let p = primary();
         let n = encode_ray(&p, &mut buf).unwrap();
         let mut long = buf[..n].to_vec();
         long[1] |= WEIGHTS_SHORT;
-        let at = 2 + 12 + 3 + 4;
+        let at = 2 + 12 + 3 + 3;
         for _ in 0..3 {
             long.splice(at..at, 32768u16.to_le_bytes());
         }
@@ -384,23 +452,29 @@ mod tests {
             prop_oneof![Just(PIXEL_CREDIT), (1u64 << 40) - 2..(1u64 << 40) + 2, 0u64..1 << 33, any::<u64>()];
         let origin = prop_oneof![
             Just(ORIGIN_AT_EYE),
-            proptest::array::uniform3(prop_oneof![Just(i32::MIN), any::<i32>()])
+            proptest::array::uniform3(prop_oneof![Just(i32::MIN), any::<i32>()]),
+            // Short components, and some just out of the short form.
+            proptest::array::uniform3(prop_oneof![0i32..1 << 24, (1 << 24) - 2..(1 << 24) + 2, -2i32..2])
         ];
+        let pixel = prop_oneof![0u32..1 << 24, (1u32 << 24) - 2..(1 << 24) + 2, any::<u32>()];
         (
             proptest::array::uniform3(prop_oneof_weights()),
             credit,
             proptest::array::uniform3(prop_oneof![250u16..260, any::<u16>()]),
             prop_oneof![250u16..260, any::<u16>()],
             prop_oneof![Just(0u16), any::<u16>()],
-            prop_oneof![5u8..9, any::<u8>()],
+            prop_oneof![1u8..5, any::<u8>()],
             origin,
             proptest::option::of(any::<i32>()),
             any::<bool>(),
+            pixel,
         )
-            .prop_map(move |(weight, credit, cell, class, tag, depth, origin, t_max, best)| {
-                let best = best.then_some(HitMsg { t: -11, sphere });
-                RayMsg { weight, credit, cell, class, tag, depth, origin, t_max, best, ..ray() }
-            })
+            .prop_map(
+                move |(weight, credit, cell, class, tag, depth, origin, t_max, best, pixel)| {
+                    let best = best.then_some(HitMsg { t: -11, sphere });
+                    RayMsg { weight, credit, cell, class, tag, depth, origin, t_max, best, pixel, ..ray() }
+                },
+            )
     }
 
     proptest::proptest! {
@@ -416,12 +490,19 @@ mod tests {
     #[derive(Debug, Clone, Copy)]
     struct Forms {
         escaped_depth: bool,
-        at_eye: bool,
-        wide_cell: bool,
+        origin: Origin,
+        wide: bool,
         weights: u8,
         credit: u8,
         wide_class: bool,
         tag: bool,
+    }
+
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    enum Origin {
+        AtEye,
+        Short,
+        Long,
     }
 
     /// Every choice of forms whose fields `r`'s values fit, canonical or not.
@@ -430,20 +511,25 @@ mod tests {
         let cells = r.cell.map(u32::from);
         let (weights, credits) =
             ([WEIGHTS_FULL, WEIGHTS_SHORT, WEIGHTS_LONG], [CREDIT_PRIMARY, CREDIT_SHORT, CREDIT_LONG]);
-        // Two ways for five fields, three for two: 288 choices, by mixed radix.
-        (0..2 * 2 * 2 * 3 * 3 * 2 * 2)
+        let origins = [Origin::AtEye, Origin::Short, Origin::Long];
+        // Two ways for four fields, three for three: 432 choices, by mixed radix.
+        (0..2 * 3 * 2 * 3 * 3 * 2 * 2)
             .map(|i: usize| Forms {
                 escaped_depth: i % 2 == 1,
-                at_eye: i / 2 % 2 == 1,
-                wide_cell: i / 4 % 2 == 1,
-                weights: weights[i / 8 % 3],
-                credit: credits[i / 24 % 3],
-                wide_class: i / 72 % 2 == 1,
-                tag: i / 144 % 2 == 1,
+                origin: origins[i / 2 % 3],
+                wide: i / 6 % 2 == 1,
+                weights: weights[i / 12 % 3],
+                credit: credits[i / 36 % 3],
+                wide_class: i / 108 % 2 == 1,
+                tag: i / 216 % 2 == 1,
             })
             .filter(|f| f.escaped_depth || r.depth < DEPTH_ESCAPE)
-            .filter(|f| !f.at_eye || r.origin == ORIGIN_AT_EYE)
-            .filter(|f| f.wide_cell || fits(&cells, 0xff))
+            .filter(|f| match f.origin {
+                Origin::AtEye => r.origin == ORIGIN_AT_EYE,
+                Origin::Short => r.origin.iter().all(|&c| (0..1 << 24).contains(&c)),
+                Origin::Long => true,
+            })
+            .filter(|f| f.wide || (fits(&cells, 0xff) && r.pixel < 1 << 24))
             .filter(|f| match f.weights {
                 WEIGHTS_FULL => r.weight == [FULL_WEIGHT; 3],
                 WEIGHTS_SHORT => fits(&r.weight, 0xffff),
@@ -471,22 +557,25 @@ mod tests {
             (r.t_max.is_some(), HAS_T_MAX),
             (f.tag, HAS_TAG),
             (f.wide_class, WIDE_CLASS),
-            (f.at_eye, AT_EYE),
+            (f.origin == Origin::AtEye, AT_EYE),
         ] {
             flags |= if set { bit } else { 0 };
         }
         let depth = if f.escaped_depth { DEPTH_ESCAPE } else { r.depth };
-        let wide = if f.wide_cell { WIDE_CELL } else { 0 };
-        let mut b = vec![flags, f.weights | f.credit | wide | depth << DEPTH_SHIFT];
+        let wide = if f.wide { WIDE } else { 0 };
+        let short = if f.origin == Origin::Short { SHORT_ORIGIN } else { 0 };
+        let mut b = vec![flags, f.weights | f.credit | wide | short | depth << DEPTH_SHIFT];
         if f.escaped_depth {
             b.push(r.depth);
         }
-        if !f.at_eye {
-            b.extend(le(&r.origin.map(|v| v as u32), 4));
+        match f.origin {
+            Origin::AtEye => {}
+            Origin::Short => b.extend(le(&r.origin.map(|v| v as u32), 3)),
+            Origin::Long => b.extend(le(&r.origin.map(|v| v as u32), 4)),
         }
         b.extend(le(&r.dir.map(|v| v as u32), 4));
-        b.extend(le(&r.cell.map(u32::from), if f.wide_cell { 2 } else { 1 }));
-        b.extend(r.pixel.to_le_bytes());
+        b.extend(le(&r.cell.map(u32::from), if f.wide { 2 } else { 1 }));
+        b.extend(le(&[r.pixel], if f.wide { 4 } else { 3 }));
         match f.weights {
             WEIGHTS_SHORT => b.extend(le(&r.weight, 2)),
             WEIGHTS_LONG => b.extend(le(&r.weight, 4)),

@@ -228,7 +228,8 @@ fn shadings(timer: &mut Timer, grid: &Grid, spheres: &[Sphere]) -> (u64, u64) {
 
 /// Rays as nodes pass them: every other one a primary ray from the eye
 /// (which the wire leaves out, as a node does), the rest reflections from
-/// a point on the primary's line with part of its weight and credit.
+/// a point in the primary's cube (as a real reflection starts on a sphere in
+/// the grid) with part of its weight and credit.
 fn wire_rays(primaries: &[RayMsg]) -> heapless::Vec<RayMsg, 64> {
     let mut out = heapless::Vec::new();
     for (k, ray) in primaries.iter().enumerate() {
@@ -236,7 +237,7 @@ fn wire_rays(primaries: &[RayMsg]) -> heapless::Vec<RayMsg, 64> {
             RayMsg { origin: ORIGIN_AT_EYE, credit: PIXEL_CREDIT, ..*ray }
         } else {
             RayMsg {
-                origin: ray.origin.map(|c| c + (150 << 16) + 12_345),
+                origin: ray.cell.map(|c| (i32::from(c) << 16) + 12_345),
                 kind: RayKind::Reflected,
                 weight: [20_000, 15_000, 9_000],
                 credit: PIXEL_CREDIT / 3,
