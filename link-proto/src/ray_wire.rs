@@ -9,7 +9,8 @@
 //!   sends [`ORIGIN_AT_EYE`] in its place and it takes no bytes;
 //! - weights at full strength (every primary ray) take none, weights under
 //!   2^16 two bytes each, else four;
-//! - credit of exactly 2^32 (a primary ray's) takes none, under 2^40 five
+//! - credit of exactly 2^32 (a primary ray's) takes none, under 2^32 (every
+//!   other ray's: a hit splits its ray's credit among its children) four
 //!   bytes, else eight;
 //! - any other origin inside the grid's first 256 cubes (every reflected or
 //!   shadow ray's: it starts on a sphere the grid holds) three bytes a
@@ -130,7 +131,7 @@ fn flags_of(ray: &RayMsg) -> [u8; 2] {
     };
     let credit = match ray.credit {
         PIXEL_CREDIT => CREDIT_PRIMARY,
-        c if c < 1 << 40 => CREDIT_SHORT,
+        c if c <= u64::from(u32::MAX) => CREDIT_SHORT,
         _ => CREDIT_LONG,
     };
     let wide = if ray.cell.iter().any(|&c| c > 0xff) || ray.pixel >= SHORT_LIMIT { WIDE } else { 0 };
@@ -188,7 +189,7 @@ pub fn encode_ray(ray: &RayMsg, out: &mut [u8]) -> Option<usize> {
     }
     let credit = ray.credit.to_le_bytes();
     match forms & CREDIT_MASK {
-        CREDIT_SHORT => w.put(credit.get(..5)?)?,
+        CREDIT_SHORT => w.put(credit.get(..4)?)?,
         CREDIT_LONG => w.put(&credit)?,
         _ => {}
     }
@@ -262,12 +263,10 @@ pub fn decode_ray(bytes: &[u8]) -> Option<RayMsg> {
     };
     let credit = match forms & CREDIT_MASK {
         CREDIT_PRIMARY => PIXEL_CREDIT,
-        CREDIT_SHORT => {
-            let mut b = [0u8; 8];
-            b.get_mut(..5)?.copy_from_slice(&r.take::<5>()?);
-            Some(u64::from_le_bytes(b)).filter(|&c| c != PIXEL_CREDIT)?
+        CREDIT_SHORT => u64::from(r.u32()?),
+        CREDIT_LONG => {
+            Some(u64::from_le_bytes(r.take()?)).filter(|&c| c > u64::from(u32::MAX) && c != PIXEL_CREDIT)?
         }
-        CREDIT_LONG => Some(u64::from_le_bytes(r.take()?)).filter(|&c| c >= 1 << 40)?,
         _ => return None,
     };
     let class = if flags & WIDE_CLASS != 0 { r.u16().filter(|&c| c > 0xff)? } else { u16::from(r.u8()?) };
@@ -376,11 +375,17 @@ mod tests {
     #[test]
     fn a_shadow_ray_from_a_sphere_in_the_grid_takes_three_bytes_an_origin_component() {
         let mut buf = [0u8; RAY_MAX_LEN];
-        let r = RayMsg { origin: [0, (1 << 24) - 1, 5 << 16], cell: [0, 255, 5], tag: 0, ..ray() };
+        let r = RayMsg {
+            origin: [0, (1 << 24) - 1, 5 << 16],
+            cell: [0, 255, 5],
+            credit: PIXEL_CREDIT / 3,
+            tag: 0,
+            ..ray()
+        };
         // Flags, forms, origin 9, direction 12, cell 3, pixel 3, weights 6
-        // (one is over 2^15 but under 2^16), credit 5, class, ignore 2, t_max 4.
+        // (one is over 2^15 but under 2^16), credit 4, class, ignore 2, t_max 4.
         let n = encode_ray(&r, &mut buf).unwrap();
-        assert_eq!(n, 2 + 9 + 12 + 3 + 3 + 6 + 5 + 1 + 2 + 4);
+        assert_eq!(n, 2 + 9 + 12 + 3 + 3 + 6 + 4 + 1 + 2 + 4);
         assert_eq!(buf[2..11], [0, 0, 0, 0xff, 0xff, 0xff, 0, 0, 5]);
         assert_eq!(decode_ray(&buf[..n]), Some(r));
         // One component at 2^24 or below zero, and the origin takes four bytes each.
@@ -449,7 +454,7 @@ mod tests {
             },
         };
         let credit =
-            prop_oneof![Just(PIXEL_CREDIT), (1u64 << 40) - 2..(1u64 << 40) + 2, 0u64..1 << 33, any::<u64>()];
+            prop_oneof![Just(PIXEL_CREDIT), (1u64 << 32) - 2..(1u64 << 32) + 3, 0u64..1 << 33, any::<u64>()];
         let origin = prop_oneof![
             Just(ORIGIN_AT_EYE),
             proptest::array::uniform3(prop_oneof![Just(i32::MIN), any::<i32>()]),
@@ -537,7 +542,7 @@ mod tests {
             })
             .filter(|f| match f.credit {
                 CREDIT_PRIMARY => r.credit == PIXEL_CREDIT,
-                CREDIT_SHORT => r.credit < 1 << 40,
+                CREDIT_SHORT => r.credit < 1 << 32,
                 _ => true,
             })
             .filter(|f| f.wide_class || r.class <= 0xff)
@@ -582,7 +587,7 @@ mod tests {
             _ => {}
         }
         match f.credit {
-            CREDIT_SHORT => b.extend(&r.credit.to_le_bytes()[..5]),
+            CREDIT_SHORT => b.extend(&r.credit.to_le_bytes()[..4]),
             CREDIT_LONG => b.extend(r.credit.to_le_bytes()),
             _ => {}
         }

@@ -50,14 +50,14 @@ impl Default for CostModel {
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (four frames on a board): one end of a hop (the ray in
     /// its compact wire form, the reply carrying the ray's ack, the reply's
-    /// ack alone every fourth reply) 1 674.1, and of a ray reply with its ack
+    /// ack alone every fourth reply) 1 658.5, and of a ray reply with its ack
     /// alone every fourth time 671.0, which stands for every short message; a
-    /// ray end is charged the difference, 1 003 (the UART's bytes are the link
+    /// ray end is charged the difference, 988 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every fourth ray) 1 144.1. The rays are half primaries from the eye,
-    /// half reflections from inside the grid (41.0 bytes a frame). A node's end of a retirement
-    /// (the host's acks taken) 1 378.2 with one record, 2 162.4 with three:
-    /// 392 a further record.
+    /// every fourth ray) 1 136.4. The rays are half primaries from the eye,
+    /// half reflections from inside the grid (40.5 bytes a frame). A node's end of a retirement
+    /// (the host's acks taken) 1 378.7 with one record, 2 164.6 with three:
+    /// 393 a further record.
     fn default() -> Self {
         Self {
             cube_step: 109,
@@ -65,11 +65,11 @@ impl Default for CostModel {
             trace: 278,
             shade: 6_941,
             create: 2_785,
-            ray_message: 1_003,
-            granted_ray: 1_144,
+            ray_message: 988,
+            granted_ray: 1_136,
             short_message: 671,
-            retire_message: 1_378,
-            retire_record: 392,
+            retire_message: 1_379,
+            retire_record: 393,
             pass: 0,
         }
     }
