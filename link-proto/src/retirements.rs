@@ -32,6 +32,11 @@ pub struct Retire {
     pub spawned: u8,
     /// Rays this record stands for (at least one).
     pub rays: u8,
+    /// Rays among them that left the scene at full strength (a primary ray
+    /// that met nothing): each adds the scene's background colour, which
+    /// the host holds, so the record carries a count and not the colour.
+    /// `rgb` is the rest of the contribution.
+    pub background: u8,
 }
 
 impl Retire {
@@ -47,9 +52,17 @@ impl Retire {
             self.credit.checked_add(other.credit),
             self.spawned.checked_add(other.spawned),
             self.rays.checked_add(other.rays),
+            self.background.checked_add(other.background),
         ) {
-            (true, [Some(r), Some(g), Some(b)], Some(credit), Some(spawned), Some(rays)) => {
-                *self = Retire { pixel: self.pixel, rgb: [r, g, b], credit, spawned, rays };
+            (
+                true,
+                [Some(r), Some(g), Some(b)],
+                Some(credit),
+                Some(spawned),
+                Some(rays),
+                Some(background),
+            ) => {
+                *self = Retire { pixel: self.pixel, rgb: [r, g, b], credit, spawned, rays, background };
                 Ok(())
             }
             _ => Err(other),
@@ -128,8 +141,14 @@ impl Eq for Retirements {}
 // primary ray's whole credit (a five-byte varint) and counts of one ray.
 //
 // Layout of a record: flags, pixel (varint), [rgb (3 varints)], [credit
-// (u32 or u64, little-endian)], [spawned, rays]. Each record has exactly one
-// encoding: bytes that are not the encoder's choice are refused.
+// (u32 or u64, little-endian)], [spawned, rays], [background]. Each record
+// has exactly one encoding: bytes that are not the encoder's choice are
+// refused.
+//
+// A primary ray that met nothing (behind a sparse scene, most of what the
+// nodes at the back of the array retire) contributes the background colour
+// itself: its record is the flags and the pixel, about four bytes where the
+// colour took six more.
 
 /// No contribution (a blocked shadow ray): no rgb bytes.
 const RGB_ZERO: u8 = 1 << 0;
@@ -141,10 +160,18 @@ const CREDIT_MASK: u8 = 0b11 << CREDIT_SHIFT;
 const CREDIT_PIXEL: u8 = 0;
 const CREDIT_SHORT: u8 = 1 << CREDIT_SHIFT;
 const CREDIT_LONG: u8 = 2 << CREDIT_SHIFT;
-const KNOWN_FLAGS: u8 = RGB_ZERO | ONE_RAY | CREDIT_MASK;
+const BACKGROUND_SHIFT: u32 = 4;
+const BACKGROUND_MASK: u8 = 0b11 << BACKGROUND_SHIFT;
+/// No ray at full strength left the scene: no byte.
+const BACKGROUND_NONE: u8 = 0;
+/// One did: no byte.
+const BACKGROUND_ONE: u8 = 1 << BACKGROUND_SHIFT;
+/// Two or more did: their count in a byte.
+const BACKGROUND_COUNT: u8 = 2 << BACKGROUND_SHIFT;
+const KNOWN_FLAGS: u8 = RGB_ZERO | ONE_RAY | CREDIT_MASK | BACKGROUND_MASK;
 
 /// The longest record: flags, four five-byte varints, a long credit and the counts.
-const RECORD_MAX_LEN: usize = 1 + 5 + 15 + 8 + 2;
+const RECORD_MAX_LEN: usize = 1 + 5 + 15 + 8 + 2 + 1;
 /// The longest wire form of a message's records.
 const WIRE_MAX_LEN: usize = Retirements::CAPACITY * RECORD_MAX_LEN;
 const _: () = assert!(WIRE_MAX_LEN < 128, "the byte string's length must stay one varint byte");
@@ -162,6 +189,11 @@ fn flags_of(r: &Retire) -> u8 {
         flags |= ONE_RAY;
     }
     flags
+        | match r.background {
+            0 => BACKGROUND_NONE,
+            1 => BACKGROUND_ONE,
+            _ => BACKGROUND_COUNT,
+        }
 }
 
 /// Packs `r` after what `w` holds.
@@ -182,6 +214,9 @@ fn encode_record(r: &Retire, w: &mut Writer<'_>) -> Option<()> {
     if flags & ONE_RAY == 0 {
         w.put(&[r.spawned, r.rays])?;
     }
+    if flags & BACKGROUND_MASK == BACKGROUND_COUNT {
+        w.put(&[r.background])?;
+    }
     Some(())
 }
 
@@ -200,7 +235,13 @@ fn decode_record(r: &mut Reader<'_>) -> Option<Retire> {
         _ => return None,
     };
     let (spawned, rays) = if flags & ONE_RAY != 0 { (0, 1) } else { (r.u8()?, r.u8()?) };
-    let record = Retire { pixel, rgb, credit, spawned, rays };
+    let background = match flags & BACKGROUND_MASK {
+        BACKGROUND_NONE => 0,
+        BACKGROUND_ONE => 1,
+        BACKGROUND_COUNT => r.u8()?,
+        _ => return None,
+    };
+    let record = Retire { pixel, rgb, credit, spawned, rays, background };
     // One record, one encoding: the forms must be the ones the encoder chose.
     (flags_of(&record) == flags).then_some(record)
 }
@@ -255,7 +296,7 @@ mod tests {
     use super::*;
 
     fn r(pixel: u32, c: u32) -> Retire {
-        Retire { pixel, rgb: [c, 2 * c, 3], credit: u64::from(c) << 20, spawned: 1, rays: 1 }
+        Retire { pixel, rgb: [c, 2 * c, 3], credit: u64::from(c) << 20, spawned: 1, rays: 1, background: 0 }
     }
 
     #[test]
@@ -264,7 +305,7 @@ mod tests {
         assert_eq!(all.push(r(7, 5)), Ok(()));
         assert_eq!(
             all.records(),
-            &[Retire { pixel: 7, rgb: [15, 30, 6], credit: 15 << 20, spawned: 2, rays: 2 }]
+            &[Retire { pixel: 7, rgb: [15, 30, 6], credit: 15 << 20, spawned: 2, rays: 2, background: 0 }]
         );
         for p in [1, 2] {
             assert_eq!(all.push(r(p, 1)), Ok(()));
@@ -281,6 +322,9 @@ mod tests {
         assert_eq!(a.merge(r(1, 1)), Err(r(1, 1)));
         let mut a = Retire { rgb: [u32::MAX, 0, 0], ..r(1, 1) };
         assert_eq!(a.merge(r(1, 1)), Err(r(1, 1)));
+        let mut a = Retire { background: 255, ..r(1, 1) };
+        let b = Retire { background: 1, ..r(1, 1) };
+        assert_eq!(a.merge(b), Err(b));
         let mut a = r(1, 1);
         assert_eq!(a.merge(r(2, 1)), Err(r(2, 1)), "another pixel");
     }
@@ -311,10 +355,20 @@ mod tests {
     }
 
     #[test]
-    fn a_primary_ray_that_missed_takes_its_flags_pixel_and_colour() {
-        let miss = Retire { pixel: 300, rgb: [1000, 2000, 30000], credit: PIXEL_CREDIT, spawned: 0, rays: 1 };
-        // Flags, a two-byte pixel, colours of two, two and three bytes.
-        assert_eq!(wire(&[miss]).len(), 1 + 1 + 2 + 2 + 2 + 3);
+    fn a_primary_ray_that_missed_takes_its_flags_and_pixel() {
+        let miss =
+            Retire { pixel: 300, rgb: [0; 3], credit: PIXEL_CREDIT, spawned: 0, rays: 1, background: 1 };
+        // The string's length, flags and a two-byte pixel.
+        assert_eq!(wire(&[miss]).len(), 1 + 1 + 2);
+        // Under the full strength, its colour: two, two and three bytes.
+        let dim = Retire { rgb: [1000, 2000, 30000], background: 0, ..miss };
+        assert_eq!(wire(&[dim]).len(), 1 + 1 + 2 + 2 + 2 + 3);
+        // Merged with another such ray of its pixel: two pixels' credit
+        // (eight bytes), the counts and the background count.
+        let mut two = miss;
+        two.merge(miss).unwrap();
+        assert_eq!(two.background, 2);
+        assert_eq!(wire(&[two]).len(), 1 + 1 + 2 + 8 + 2 + 1);
         let blocked = Retire { rgb: [0; 3], credit: PIXEL_CREDIT / 3, ..miss };
         // Flags, pixel, four bytes of credit.
         assert_eq!(wire(&[blocked]).len(), 1 + 1 + 2 + 4);
@@ -322,7 +376,7 @@ mod tests {
 
     #[test]
     fn a_second_encoding_of_the_same_record_is_refused() {
-        let one = Retire { pixel: 5, rgb: [0; 3], credit: 7, spawned: 0, rays: 1 };
+        let one = Retire { pixel: 5, rgb: [0; 3], credit: 7, spawned: 0, rays: 1, background: 0 };
         let mut longer = wire(&[one]);
         // Counts written out though they are the one-ray form's.
         longer[1] &= !ONE_RAY;
@@ -339,6 +393,20 @@ mod tests {
         let mut odd = wire(&[one]);
         odd[1] |= 1 << 7;
         assert!(postcard::from_bytes::<Retirements>(&odd).is_err());
+        // One background ray written as a count, or no background form at all.
+        let mut counted = wire(&[Retire { background: 1, ..one }]);
+        counted[1] = (counted[1] & !BACKGROUND_MASK) | BACKGROUND_COUNT;
+        counted.push(1);
+        counted[0] += 1;
+        assert!(postcard::from_bytes::<Retirements>(&counted).is_err());
+        let mut zero = wire(&[one]);
+        zero[1] |= BACKGROUND_COUNT;
+        zero.push(0);
+        zero[0] += 1;
+        assert!(postcard::from_bytes::<Retirements>(&zero).is_err());
+        let mut form3 = wire(&[one]);
+        form3[1] |= BACKGROUND_MASK;
+        assert!(postcard::from_bytes::<Retirements>(&form3).is_err());
     }
 
     proptest::proptest! {
@@ -358,6 +426,7 @@ mod tests {
                         proptest::num::u64::ANY,
                     ],
                     proptest::prop_oneof![proptest::strategy::Just((0u8, 1u8)), (0u8..4, 1u8..4), (proptest::num::u8::ANY, proptest::num::u8::ANY)],
+                    proptest::prop_oneof![0u8..3, proptest::num::u8::ANY],
                 ),
                 1..=3,
             ),
@@ -366,8 +435,8 @@ mod tests {
                 .into_iter()
                 .enumerate()
                 // Distinct pixels, so that none merge.
-                .map(|(k, (pixel, rgb, credit, (spawned, rays)))| {
-                    Retire { pixel: pixel / 4 * 4 + k as u32, rgb, credit, spawned, rays }
+                .map(|(k, (pixel, rgb, credit, (spawned, rays), background))| {
+                    Retire { pixel: pixel / 4 * 4 + k as u32, rgb, credit, spawned, rays, background }
                 })
                 .collect();
             let mut all = Retirements::new(records[0]);

@@ -137,21 +137,20 @@ fn arb_message() -> impl Strategy<Value = Message> {
             })
         ),
         arb_ray().prop_map(Message::Ray),
-        proptest::collection::vec((any::<u32>(), any::<[u32; 3]>(), any::<u64>(), any::<(u8, u8)>()), 1..=3)
-            .prop_map(|records| {
-                let mut all = records.into_iter().map(|(pixel, rgb, credit, (spawned, rays))| Retire {
-                    pixel,
-                    rgb,
-                    credit,
-                    spawned,
-                    rays,
-                });
-                let mut batch = Retirements::new(all.next().unwrap_or_default());
-                for r in all {
-                    let _ = batch.push(r);
-                }
-                Message::Retire(batch)
-            }),
+        proptest::collection::vec(
+            (any::<u32>(), any::<[u32; 3]>(), any::<u64>(), any::<(u8, u8, u8)>()),
+            1..=3
+        )
+        .prop_map(|records| {
+            let mut all = records.into_iter().map(|(pixel, rgb, credit, (spawned, rays, background))| {
+                Retire { pixel, rgb, credit, spawned, rays, background }
+            });
+            let mut batch = Retirements::new(all.next().unwrap_or_default());
+            for r in all {
+                let _ = batch.push(r);
+            }
+            Message::Retire(batch)
+        }),
         (any::<(u16, u32, u64, u64)>(), any::<(u32, u32, u32)>()).prop_map(|(a, b)| Message::Load(
             LoadReport {
                 node: a.0,

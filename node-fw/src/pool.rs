@@ -567,7 +567,9 @@ mod tests {
         match code % 6 {
             0 => Stage::Trace,
             1 => Stage::Shade { next: 0, children: 1, share: 1, rgb: [0; 3] },
-            2 => Stage::Retire(Retire { pixel: 0, rgb: [0; 3], credit: 1, spawned: 0, rays: 1 }),
+            2 => {
+                Stage::Retire(Retire { pixel: 0, rgb: [0; 3], credit: 1, spawned: 0, rays: 1, background: 0 })
+            }
             3 => Stage::Outbound(port),
             4 => Stage::Sent(port),
             _ => Stage::Refused(port),

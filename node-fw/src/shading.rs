@@ -99,6 +99,12 @@ pub struct Scene<'a> {
 }
 
 impl Scene<'_> {
+    /// The background colour, Q1.15: what a ray at full strength that leaves
+    /// the grid contributes.
+    pub fn background_colour(&self) -> [u32; 3] {
+        self.header.background.map(u32::from)
+    }
+
     /// Contribution of a ray that leaves the grid: background times weight.
     pub fn background(&self, ray: &RayMsg) -> [u32; 3] {
         zip3(ray.weight, self.header.background, |w, b| mul15(w, u32::from(b)))

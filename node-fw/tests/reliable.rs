@@ -56,6 +56,7 @@ fn msg(i: u32) -> Message {
         credit: u64::from(i) << 20,
         spawned: (i % 5) as u8,
         rays: 1,
+        background: (i % 2) as u8,
     }))
 }
 

@@ -56,8 +56,8 @@ impl Default for CostModel {
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
     /// every fourth ray) 1 136.4. The rays are half primaries from the eye,
     /// half reflections from inside the grid (40.5 bytes a frame). A node's end of a retirement
-    /// (the host's acks taken) 1 378.7 with one record, 2 164.6 with three:
-    /// 393 a further record.
+    /// (the host's acks taken) 1 377.4 with one record, 2 181.6 with three:
+    /// 402 a further record.
     fn default() -> Self {
         Self {
             cube_step: 109,
@@ -68,8 +68,8 @@ impl Default for CostModel {
             ray_message: 988,
             granted_ray: 1_136,
             short_message: 671,
-            retire_message: 1_379,
-            retire_record: 393,
+            retire_message: 1_377,
+            retire_record: 402,
             pass: 0,
         }
     }

@@ -324,7 +324,7 @@ fn a_node_reports_bad_input_the_host_did_not_catch() {
     };
     board.send(0, Message::Sphere(sphere));
     board.send(0, Message::SceneEnd(SceneEnd { spheres: 1, lights: 0 }));
-    let mut frame = host_tool::session::frame::FrameBuffer::new(1, 1, 1, 1);
+    let mut frame = host_tool::session::frame::FrameBuffer::new(1, 1, 1, 1, [0; 3]);
     Transport::run(&mut board, &mut frame).expect("the node answers");
     let e = frame.errors.first().expect("the node reported an error");
     assert_eq!((e.node, e.code), (0, ErrorCode::OutOfRange));
@@ -460,7 +460,7 @@ fn a_node_names_the_check_that_failed() {
     ] {
         let mut board = Board::new(SimConfig::new([1, 1, 1]));
         board.send(0, msg);
-        let mut frame = host_tool::session::frame::FrameBuffer::new(1, 1, 1, 1);
+        let mut frame = host_tool::session::frame::FrameBuffer::new(1, 1, 1, 1, [0; 3]);
         Transport::run(&mut board, &mut frame).expect("the node answers");
         let e = frame.errors.first().expect("the node reported an error");
         assert_eq!((e.code, Found::from_wire(e.b)), (want.0, Some(want.1)));

@@ -368,6 +368,7 @@ fn retirements(timer: &mut Timer, rays: &[RayMsg], per: usize) -> (u64, u64) {
                 credit: PIXEL_CREDIT / 3,
                 spawned: (ray.pixel % 3) as u8,
                 rays: 1,
+                background: 0,
             });
             let Some(first) = records.next() else { continue };
             let mut batch = Retirements::new(first);

@@ -167,7 +167,8 @@ fn retire_cost(cost: &sim_board::CostModel, bytes: ByteCpu, ray: &RayMsg) -> u64
         return cost.retire_message;
     }
     // Its contribution is its weight at most: that many bytes, about.
-    let record = Retire { pixel: ray.pixel, rgb: ray.weight, credit: ray.credit, spawned: 0, rays: 1 };
+    let record =
+        Retire { pixel: ray.pixel, rgb: ray.weight, credit: ray.credit, spawned: 0, rays: 1, background: 0 };
     cost.retire_message + bytes.host * frame_len(&Message::Retire(Retirements::new(record)))
 }
 

@@ -38,6 +38,9 @@ pub struct Plan {
     pub tiles: Vec<[u16; 4]>,
     /// The image the nodes trace, in samples ([`RenderOptions::trace_size`]).
     pub trace_size: [u16; 2],
+    /// The background colour the nodes hold (Q1.15): the host adds it for
+    /// each ray a node reports as leaving the scene at full strength.
+    pub background: [u16; 3],
 }
 
 impl Plan {
@@ -70,7 +73,8 @@ impl Plan {
                 (0..partition.len()).map(|i| if i == eye { [0, 0, w, h] } else { [0; 4] }).collect()
             }
         };
-        Ok(Self { options: *options, partition, view_axis, basis, tiles, trace_size })
+        let background = scene.header().background;
+        Ok(Self { options: *options, partition, view_axis, basis, tiles, trace_size, background })
     }
 
     /// Samples per pixel along each axis.

@@ -48,6 +48,9 @@ pub struct FrameBuffer<T> {
     side: u16,
     /// Per sample and channel, sum of Q1.15 contributions.
     pub sums: Vec<[u64; 3]>,
+    /// The scene's background colour, Q1.15, added for each ray a record
+    /// counts as leaving the scene at full strength.
+    background: [u16; 3],
     /// Credit expected back (one initial credit per pixel).
     pub credit_total: u128,
     /// Credit returned so far.
@@ -79,10 +82,12 @@ pub struct FrameBuffer<T> {
 }
 
 impl<T: Clock> FrameBuffer<T> {
-    /// An empty frame of `width` x `height` for `nodes` nodes, `credit` per pixel.
-    pub fn new(width: u16, height: u16, nodes: usize, credit: u64) -> Self {
+    /// An empty frame of `width` x `height` for `nodes` nodes, `credit` per
+    /// pixel, of a scene whose background colour is `background` (Q1.15).
+    pub fn new(width: u16, height: u16, nodes: usize, credit: u64, background: [u16; 3]) -> Self {
         let pixels = usize::from(width) * usize::from(height);
         Self {
+            background,
             width,
             height,
             side: 1,
@@ -111,8 +116,8 @@ impl<T: Clock> FrameBuffer<T> {
 
     fn retire(&mut self, at: T, r: Retire) {
         if let Some(px) = self.sums.get_mut(r.pixel as usize) {
-            for (s, c) in px.iter_mut().zip(r.rgb) {
-                *s += u64::from(c);
+            for ((s, c), b) in px.iter_mut().zip(r.rgb).zip(self.background) {
+                *s += u64::from(c) + u64::from(r.background) * u64::from(b);
             }
         }
         self.credit_back += u128::from(r.credit);

@@ -66,7 +66,8 @@ pub fn frame<T: Transport>(
         .map(|i| (transport.bytes_sent(i), transport.bytes_received(i), transport.busy(i)))
         .collect();
     let links_before = transport.link_stats();
-    let mut frame = FrameBuffer::new(w, h, transport.nodes(), PIXEL_CREDIT).sampled(plan.sample_side());
+    let mut frame =
+        FrameBuffer::new(w, h, transport.nodes(), PIXEL_CREDIT, plan.background).sampled(plan.sample_side());
     start(transport, plan, number);
 
     let mut tracked = Tracked::new(&mut frame);

@@ -7,7 +7,7 @@ use crate::camera::{primary_line, primary_ray};
 use crate::digital_line::DigitalLine;
 use crate::pool::Stage;
 
-use super::{Node, Phase, Work, retire};
+use super::{Node, Phase, Work, retire_to_background};
 
 impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
     /// Whether initial rays of this node's tile remain to be created.
@@ -37,7 +37,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 ray.cell = walk.cell().map(|c| c as u16);
                 Stage::Trace
             }
-            None => Stage::Retire(retire(&ray, self.scene().background(&ray), ray.credit, 0)),
+            None => Stage::Retire(retire_to_background(&self.scene(), &ray)),
         };
         if self.pool.admit(ray, stage).is_err() {
             // can_admit(0) was checked: unreachable, but never lose the ray.

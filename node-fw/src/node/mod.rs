@@ -494,5 +494,18 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
 }
 
 fn retire(ray: &RayMsg, rgb: [u32; 3], credit: u64, spawned: u8) -> Retire {
-    Retire { pixel: ray.pixel, rgb, credit, spawned, rays: 1 }
+    Retire { pixel: ray.pixel, rgb, credit, spawned, rays: 1, background: 0 }
+}
+
+/// The record of `ray` leaving the scene. At full strength its
+/// contribution is the background colour itself, which the host holds: the
+/// record counts it instead of carrying it (six bytes fewer on the host
+/// link, which the nodes behind the scene fill with such records).
+fn retire_to_background(scene: &crate::shading::Scene<'_>, ray: &RayMsg) -> Retire {
+    let rgb = scene.background(ray);
+    if rgb == scene.background_colour() {
+        Retire { rgb: [0; 3], background: 1, ..retire(ray, rgb, ray.credit, 0) }
+    } else {
+        retire(ray, rgb, ray.credit, 0)
+    }
 }

@@ -13,7 +13,7 @@ use crate::shading::Scene;
 use crate::sphere::Hit;
 use crate::subregion::{Outcome, Query, TraceStats};
 
-use super::{Children, Node, Work, retire};
+use super::{Children, Node, Work, retire, retire_to_background};
 
 impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
     /// One piece of work: the ready ray of the lowest class, else a new
@@ -92,11 +92,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                     None => return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::LeavesTowardNoNeighbour),
                 }
             }
-            Outcome::LeftGrid | Outcome::Clear => {
-                let rgb =
-                    if ray.kind == RayKind::Shadow { ray.weight } else { self.scene().background(&ray) };
-                Stage::Retire(retire(&ray, rgb, ray.credit, 0))
+            Outcome::LeftGrid | Outcome::Clear if ray.kind == RayKind::Shadow => {
+                Stage::Retire(retire(&ray, ray.weight, ray.credit, 0))
             }
+            Outcome::LeftGrid | Outcome::Clear => Stage::Retire(retire_to_background(&self.scene(), &ray)),
             Outcome::Blocked => Stage::Retire(retire(&ray, [0; 3], ray.credit, 0)),
             Outcome::Hit(_) => {
                 work.shades += 1;
