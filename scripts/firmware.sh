@@ -15,6 +15,12 @@ OUT=target/firmware
 mkdir -p "$OUT"
 SIZE="$(rustc --print sysroot)/lib/rustlib/$(rustc -vV | sed -n 's/^host: //p')/bin/llvm-size"
 [ -x "$SIZE" ] || { echo "error: llvm-size missing; run: rustup component add llvm-tools" >&2; exit 1; }
+for target in thumbv7m-none-eabi thumbv7em-none-eabihf; do
+    rustup target list --installed 2>/dev/null | grep -qx "$target" ||
+        { echo "error: the $target target is missing; run: rustup target add $target" >&2; exit 1; }
+done
+command -v qemu-system-arm >/dev/null ||
+    { echo "error: qemu-system-arm missing; run: apt-get install qemu-system-arm" >&2; exit 1; }
 
 # check_size BOARD ELF FLASH_KIB RAM_KIB: copies the image to $OUT and checks it fits.
 check_size() {
