@@ -10,6 +10,10 @@
 pub trait Clock {
     /// Cycles since start.
     fn now(&mut self) -> u64;
+
+    /// How many of [`Clock::now`]'s units make a second, so that waits
+    /// meant in time (a resend's) come out the same on every board.
+    fn ticks_per_second(&self) -> u64;
 }
 
 /// Extends a wrapping 32-bit counter to 64 bits; it must be read at least

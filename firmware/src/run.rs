@@ -13,8 +13,22 @@ use crate::clock::Clock;
 use crate::lights::{Activity, Lights};
 use crate::wires::Wires;
 
-/// Cycles without an acknowledgement after which a channel resends.
-pub const RESEND_AFTER: u64 = 20_000_000;
+/// How long a channel waits without an acknowledgement before it resends.
+///
+/// A real board's round trip is well under a millisecond, so this only
+/// bounds how soon a lost frame is noticed; the receiver's nak recovers a
+/// gap at once whenever a later frame arrives. Emulated boards need the
+/// margin: they idle in real time, and twenty-seven emulators on two cores
+/// leave a peer unscheduled for tens of milliseconds. At 20 ms the 3x3x3
+/// netduinoplus2 frame of docs/boards.md took 402 s with 4 333 resends
+/// (each one more work for the starved peers); at 200 ms, 8-11 s with
+/// 210-484.
+pub const RESEND_AFTER_MS: u64 = 200;
+
+/// [`RESEND_AFTER_MS`] in `clock`'s ticks.
+pub fn resend_after(clock: &impl Clock) -> u64 {
+    clock.ticks_per_second() / 1000 * RESEND_AFTER_MS
+}
 
 /// How the loop waits when there is nothing to do.
 #[derive(Debug, Clone, Copy)]

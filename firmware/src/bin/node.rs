@@ -5,7 +5,7 @@
 use cortex_m_rt::entry;
 use node_board::board::active as board;
 use node_board::board::{boot_count, wake};
-use node_board::run::{Idle, RESEND_AFTER, run};
+use node_board::run::{Idle, resend_after, run};
 use node_board::wires::Wires;
 use node_board::{BoardLinks, BoardNode};
 use static_cell::ConstStaticCell;
@@ -27,7 +27,7 @@ fn main() -> ! {
     let node = NODE.take();
     node.set_board(info);
     let links = LINKS.take();
-    links.set_timeout(RESEND_AFTER);
+    links.set_timeout(resend_after(&clock));
     links.set_incarnation(boot_count::next_incarnation());
     run(node, links, &mut wires, &mut clock, &mut lights, idle)
 }

@@ -127,6 +127,10 @@ impl Clock for Timer {
     fn now(&mut self) -> u64 {
         self.ticks() * NS_PER_TICK
     }
+
+    fn ticks_per_second(&self) -> u64 {
+        1_000_000_000
+    }
 }
 
 /// The host UART and the four neighbour UARTs.

@@ -232,23 +232,28 @@ impl Write for Uart {
 pub struct Timer {
     tim: &'static tim2::RegisterBlock,
     widen: Widen,
+    hz: u64,
 }
 
 impl Timer {
-    /// Starts TIM2 from zero, undivided. Its bus clock must be on.
-    fn start(tim: &'static tim2::RegisterBlock) -> Self {
+    /// Starts TIM2 from zero, undivided, counting at `hz`. Its bus clock must be on.
+    fn start(tim: &'static tim2::RegisterBlock, hz: u64) -> Self {
         tim.psc().write(|w| w.psc().set(0));
         tim.arr().write(|w| w.arr().set(u32::MAX));
         // Update event: loads the prescaler and clears the counter.
         tim.egr().write(|w| w.ug().set_bit());
         tim.cr1().write(|w| w.cen().set_bit());
-        Self { tim, widen: Widen::new(tim.cnt().read().bits()) }
+        Self { tim, widen: Widen::new(tim.cnt().read().bits()), hz }
     }
 }
 
 impl Clock for Timer {
     fn now(&mut self) -> u64 {
         self.widen.up(self.tim.cnt().read().bits())
+    }
+
+    fn ticks_per_second(&self) -> u64 {
+        self.hz
     }
 }
 
@@ -288,7 +293,14 @@ pub fn init() -> Parts {
         Uart::new(Regs::Uart(keep(dp.UART7)), NEIGHBOUR_APB1),
     ];
     let lights = Lights::new(Led::new(b, LD1_GREEN), Led::new(b, LD3_RED));
-    Parts { host, neighbours, clock: Timer::start(keep(dp.TIM2)), info: board_info(core), lights }
+    let info = board_info(core);
+    Parts { host, neighbours, clock: Timer::start(keep(dp.TIM2), timer_hz(&info)), info, lights }
+}
+
+/// TIM2's rate: the core clock on a real board; under QEMU it counts
+/// virtual nanoseconds whatever the (stub) clock tree says.
+fn timer_hz(info: &BoardInfo) -> u64 {
+    if cfg!(feature = "netduinoplus2") { 1_000_000_000 } else { u64::from(info.clock_hz) }
 }
 
 /// The NUCLEO-F413ZH's user LEDs on port B (UM1974: LD1 green on PB0, LD2
