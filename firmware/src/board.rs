@@ -3,6 +3,8 @@
 pub mod boot_count;
 pub mod identity;
 pub mod mmio;
+#[cfg(any(feature = "stm32f413", feature = "netduinoplus2"))]
+pub mod rx_ring;
 pub mod wake;
 
 #[cfg(feature = "mps2-an385")]

@@ -4,7 +4,7 @@
 
 use cortex_m_rt::entry;
 use node_board::board::active as board;
-use node_board::board::{boot_count, wake};
+use node_board::board::boot_count;
 use node_board::run::{Idle, resend_after, run};
 use node_board::wires::Wires;
 use node_board::{BoardLinks, BoardNode};
@@ -22,8 +22,8 @@ fn main() -> ! {
     let board::Parts { host, neighbours, mut clock, info, mut lights } = board::init();
     node_board::log::booted(&info);
     let mut wires = Wires::new(host, neighbours);
-    wake::arm(board::WAKE_PERIOD);
-    let idle = Idle { clear: board::clear_wakeups, sleep: wake::sleep };
+    board::arm_wakeups();
+    let idle = Idle { clear: board::clear_wakeups, sleep: board::sleep };
     let node = NODE.take();
     node.set_board(info);
     let links = LINKS.take();

@@ -195,6 +195,16 @@ impl OutputPin for Led {
 /// are served at least this often; a busy node polls continuously).
 pub const WAKE_PERIOD: u32 = 50_000;
 
+/// Lets the UARTs' receive interrupts and the SysTick pend, masked.
+pub fn arm_wakeups() {
+    super::wake::arm(WAKE_PERIOD);
+}
+
+/// Waits for an interrupt to pend.
+pub fn sleep() {
+    super::wake::sleep();
+}
+
 /// Clears what pended (UARTs, NVIC, SysTick) before a poll.
 pub fn clear_wakeups() {
     for base in UARTS {

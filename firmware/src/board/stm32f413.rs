@@ -33,11 +33,15 @@ use clock_tree::nucleo_f413zh::{
     FROM_HSE, FROM_HSI, HOST_APB1, HOST_BAUD, NEIGHBOUR_APB1, NEIGHBOUR_APB2, NEIGHBOUR_BAUD,
 };
 use clock_tree::{Brr, ClockPlan};
+use cortex_m::peripheral::NVIC;
+use cortex_m_rt::exception;
 use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_io::{ErrorType, Read, ReadReady, Write, WriteReady};
 use link_proto::{BoardId, BoardInfo, BoardKind, ClockSource};
 use stm32f4::Periph;
-use stm32f4::stm32f413::{self as pac, gpiob, tim2, uart4, usart1};
+use stm32f4::stm32f413::{self as pac, Interrupt, gpiob, interrupt, tim2, uart4, usart1};
+
+use super::rx_ring::RxRing;
 
 use super::identity;
 use crate::clock::{Clock, Widen};
@@ -141,33 +145,118 @@ macro_rules! with_regs {
     };
 }
 
-/// A polled STM32F4 U(S)ART.
+/// Bytes a UART's receive ring holds: 82 000 core cycles of a neighbour
+/// link at 3.125 Mbaud, far longer than any pass of the loop.
+const RX_LEN: usize = 256;
+
+/// The receive rings, in the order of [`RX_IRQS`]: the host's, then +X, -X,
+/// +Y, -Y, +Z, -Z.
+static RX: [RxRing<RX_LEN>; 7] = [const { RxRing::new() }; 7];
+
+/// The U(S)ARTs' interrupts, in the order of [`RX`].
+const RX_IRQS: [Interrupt; 7] = [
+    Interrupt::USART3,
+    Interrupt::USART1,
+    Interrupt::USART2,
+    Interrupt::UART4,
+    Interrupt::UART5,
+    Interrupt::USART6,
+    Interrupt::UART7,
+];
+
+/// A U(S)ART whose received bytes its interrupt moves into a ring (see
+/// [`super::rx_ring`]), and whose transmitter is polled: a byte not sent
+/// waits in the node's transmit ring, none is lost.
 #[derive(Debug)]
 pub struct Uart {
     regs: Regs,
-    /// Receive overruns seen (bytes lost in hardware; the reliable channel resends).
-    pub overruns: u32,
+    rx: &'static RxRing<RX_LEN>,
 }
 
 impl Uart {
     /// Sets the rate and enables transmitter, receiver and the receive
-    /// interrupt (it only pends: see [`super::wake`]). The bus clock must be on.
-    fn new(regs: Regs, brr: Brr) -> Self {
+    /// interrupt, whose bytes go to `rx`. The bus clock must be on.
+    fn new(regs: Regs, brr: Brr, rx: &'static RxRing<RX_LEN>) -> Self {
         let (mantissa, fraction) = (brr.value >> 4, (brr.value & 0xF) as u8);
         with_regs!(regs, r => {
             r.brr().write(|w| w.div_mantissa().set(mantissa).div_fraction().set(fraction));
             r.cr1().write(|w| w.ue().set_bit().te().set_bit().re().set_bit().rxneie().set_bit());
         });
-        Self { regs, overruns: 0 }
-    }
-
-    fn rx_ready(&self) -> bool {
-        with_regs!(self.regs, r => r.sr().read().rxne().bit_is_set())
+        Self { regs, rx }
     }
 
     fn tx_ready(&self) -> bool {
         with_regs!(self.regs, r => r.sr().read().txe().bit_is_set())
     }
+
+    /// Bytes lost on the way in (overrun, or a full ring); the reliable
+    /// channel resent the frames they belonged to.
+    pub fn lost(&self) -> u32 {
+        self.rx.lost()
+    }
+}
+
+/// The receive interrupt's work: every byte the UART holds into `rx`.
+/// Reading SR then DR takes the byte and clears an overrun; an overrun
+/// means a byte was lost before this ran.
+fn receive(regs: Regs, rx: &RxRing<RX_LEN>) {
+    loop {
+        let (ready, overrun) = with_regs!(regs, r => {
+            let sr = r.sr().read();
+            (sr.rxne().bit_is_set(), sr.ore().bit_is_set())
+        });
+        if !ready {
+            return;
+        }
+        if overrun {
+            rx.note_lost();
+        }
+        rx.push(with_regs!(regs, r => r.dr().read().dr().bits()) as u8);
+    }
+}
+
+/// The registers of the U(S)ART at `block`, for its interrupt handler.
+fn regs_at<RB>(block: *const RB) -> &'static RB {
+    // SAFETY: `block` is a PAC peripheral's fixed address, valid for ever.
+    // Besides the main loop's handle the handler only reads SR and DR,
+    // which the loop no longer reads for receiving (it reads SR for TXE
+    // only, and reading SR changes nothing by itself).
+    unsafe { &*block }
+}
+
+#[interrupt]
+fn USART3() {
+    receive(Regs::Usart(regs_at(pac::USART3::ptr())), &RX[0]);
+}
+
+#[interrupt]
+fn USART1() {
+    receive(Regs::Usart(regs_at(pac::USART1::ptr())), &RX[1]);
+}
+
+#[interrupt]
+fn USART2() {
+    receive(Regs::Usart(regs_at(pac::USART2::ptr())), &RX[2]);
+}
+
+#[interrupt]
+fn UART4() {
+    receive(Regs::Uart(regs_at(pac::UART4::ptr())), &RX[3]);
+}
+
+#[interrupt]
+fn UART5() {
+    receive(Regs::Uart(regs_at(pac::UART5::ptr())), &RX[4]);
+}
+
+#[interrupt]
+fn USART6() {
+    receive(Regs::Usart(regs_at(pac::USART6::ptr())), &RX[5]);
+}
+
+#[interrupt]
+fn UART7() {
+    receive(Regs::Uart(regs_at(pac::UART7::ptr())), &RX[6]);
 }
 
 impl ErrorType for Uart {
@@ -176,7 +265,7 @@ impl ErrorType for Uart {
 
 impl ReadReady for Uart {
     fn read_ready(&mut self) -> Result<bool, Infallible> {
-        Ok(self.rx_ready())
+        Ok(!self.rx.is_empty())
     }
 }
 
@@ -184,23 +273,11 @@ impl Read for Uart {
     /// Blocks until a byte arrives (embedded-io's contract); reads one.
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, Infallible> {
         let Some(first) = buf.first_mut() else { return Ok(0) };
-        // One status read per byte (each is a bus access, and an exit to
-        // the device model under QEMU). An overrun keeps the byte in DR and
-        // loses the next; reading SR then DR delivers the kept byte and
-        // clears the overrun.
-        let overrun = loop {
-            let (ready, overrun) = with_regs!(self.regs, r => {
-                let sr = r.sr().read();
-                (sr.rxne().bit_is_set(), sr.ore().bit_is_set())
-            });
-            if ready {
-                break overrun;
+        *first = loop {
+            if let Some(byte) = self.rx.pop() {
+                break byte;
             }
         };
-        if overrun {
-            self.overruns = self.overruns.wrapping_add(1);
-        }
-        *first = with_regs!(self.regs, r => r.dr().read().dr().bits()) as u8;
         Ok(1)
     }
 }
@@ -283,14 +360,14 @@ pub fn init() -> Parts {
     alternate!(d, 8, 2); // UART5 RX
     alternate!(c, 8, 6, 7); // USART6: +Z
     alternate!(e, 8, 7, 8); // UART7: -Z
-    let host = Uart::new(Regs::Usart(keep(dp.USART3)), HOST_APB1);
+    let host = Uart::new(Regs::Usart(keep(dp.USART3)), HOST_APB1, &RX[0]);
     let neighbours = [
-        Uart::new(Regs::Usart(keep(dp.USART1)), NEIGHBOUR_APB2),
-        Uart::new(Regs::Usart(keep(dp.USART2)), NEIGHBOUR_APB1),
-        Uart::new(Regs::Uart(keep(dp.UART4)), NEIGHBOUR_APB1),
-        Uart::new(Regs::Uart(keep(dp.UART5)), NEIGHBOUR_APB1),
-        Uart::new(Regs::Usart(keep(dp.USART6)), NEIGHBOUR_APB2),
-        Uart::new(Regs::Uart(keep(dp.UART7)), NEIGHBOUR_APB1),
+        Uart::new(Regs::Usart(keep(dp.USART1)), NEIGHBOUR_APB2, &RX[1]),
+        Uart::new(Regs::Usart(keep(dp.USART2)), NEIGHBOUR_APB1, &RX[2]),
+        Uart::new(Regs::Uart(keep(dp.UART4)), NEIGHBOUR_APB1, &RX[3]),
+        Uart::new(Regs::Uart(keep(dp.UART5)), NEIGHBOUR_APB1, &RX[4]),
+        Uart::new(Regs::Usart(keep(dp.USART6)), NEIGHBOUR_APB2, &RX[5]),
+        Uart::new(Regs::Uart(keep(dp.UART7)), NEIGHBOUR_APB1, &RX[6]),
     ];
     let lights = Lights::new(Led::new(b, LD1_GREEN), Led::new(b, LD3_RED));
     let info = board_info(core);
@@ -382,11 +459,38 @@ fn board_info(core: CoreClock) -> BoardInfo {
 /// SysTick period while idle: 2 ms at 100 MHz.
 pub const WAKE_PERIOD: u32 = 200_000;
 
-/// Clears what pended (NVIC, SysTick) before a poll; a UART's receive
-/// interrupt clears itself when its byte is read.
-pub fn clear_wakeups() {
-    super::wake::clear();
+/// Starts the wake-up tick and lets the U(S)ARTs' receive interrupts run:
+/// theirs are the only lines enabled, and their handlers only move bytes
+/// into the rings.
+pub fn arm_wakeups() {
+    super::wake::start_tick(WAKE_PERIOD);
+    for irq in RX_IRQS {
+        // SAFETY: each of these lines has its handler above, which touches
+        // nothing but its UART's SR and DR and its ring's producer side.
+        unsafe { NVIC::unmask(irq) };
+    }
+    // SAFETY: called once at boot, outside any critical section.
+    unsafe { cortex_m::interrupt::enable() };
 }
+
+/// Sleeps unless a byte is waiting. The check and the `wfi` run with
+/// interrupts masked, so a byte that arrives between them still ends the
+/// `wfi` (a pending interrupt wakes a masked core) and is taken by its
+/// handler once they are unmasked again.
+pub fn sleep() {
+    cortex_m::interrupt::free(|_| {
+        if RX.iter().all(RxRing::is_empty) {
+            cortex_m::asm::wfi();
+        }
+    });
+}
+
+/// Nothing to forget: the handlers take what pends.
+pub fn clear_wakeups() {}
+
+/// The wake-up tick's only work is to end a `wfi`.
+#[exception]
+fn SysTick() {}
 
 /// Under QEMU the emulation ends (semihosting); a real board has nothing
 /// to exit to: it stops.

@@ -1,8 +1,10 @@
 //! Sleeping until there is something to do (any Cortex-M).
 //!
-//! Interrupts stay masked (PRIMASK): a UART's receive interrupt or the
-//! SysTick only pends, which is enough to end a `wfi`, and nothing runs
-//! behind the main loop's back. The loop clears what is pending before it
+//! On the mps2-an385 interrupts stay masked (PRIMASK, [`arm`]): a UART's
+//! receive interrupt or the SysTick only pends, which is enough to end a
+//! `wfi`, and nothing runs behind the main loop's back. (The STM32 image
+//! runs its receive interrupts' handlers instead and uses [`start_tick`]
+//! only: see its module.) The loop clears what is pending before it
 //! polls, so a byte that arrives after the poll still ends the next `wfi`:
 //! no wake-up is lost. Under QEMU an idle node then costs the host no CPU,
 //! which matters with eight emulated boards on two cores.
@@ -30,6 +32,11 @@ pub fn arm(period: u32) {
     for bank in 0..BANKS {
         Reg::at(NVIC_ISER, 4 * bank).write(u32::MAX);
     }
+    start_tick(period);
+}
+
+/// Starts the SysTick interrupting every `period` core cycles.
+pub fn start_tick(period: u32) {
     Reg::at(SYST, SYST_RVR).write(period.clamp(1, 0x00FF_FFFF));
     Reg::at(SYST, SYST_CVR).write(0);
     Reg::at(SYST, SYST_CSR).write(SYST_ON);
