@@ -1,10 +1,10 @@
 //! Boards: UART drivers and clocks, one module per board.
 
 pub mod boot_count;
+#[cfg(any(feature = "stm32f413", feature = "netduinoplus2"))]
+pub mod byte_ring;
 pub mod identity;
 pub mod mmio;
-#[cfg(any(feature = "stm32f413", feature = "netduinoplus2"))]
-pub mod rx_ring;
 pub mod wake;
 
 #[cfg(feature = "mps2-an385")]

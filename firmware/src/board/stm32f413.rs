@@ -41,7 +41,7 @@ use link_proto::{BoardId, BoardInfo, BoardKind, ClockSource};
 use stm32f4::Periph;
 use stm32f4::stm32f413::{self as pac, Interrupt, gpiob, interrupt, tim2, uart4, usart1};
 
-use super::rx_ring::RxRing;
+use super::byte_ring::ByteRing;
 
 use super::identity;
 use crate::clock::{Clock, Widen};
@@ -145,16 +145,24 @@ macro_rules! with_regs {
     };
 }
 
-/// Bytes a UART's receive ring holds: 82 000 core cycles of a neighbour
+/// Bytes each of a UART's rings holds: 82 000 core cycles of a neighbour
 /// link at 3.125 Mbaud, far longer than any pass of the loop.
-const RX_LEN: usize = 256;
+const RING: usize = 256;
 
-/// The receive rings, in the order of [`RX_IRQS`]: the host's, then +X, -X,
+/// A UART's bytes on their way between its interrupt handler and the loop.
+struct Rings {
+    /// Received: the handler pushes, the loop pops.
+    rx: ByteRing<RING>,
+    /// To send: the loop pushes, the handler pops.
+    tx: ByteRing<RING>,
+}
+
+/// Each UART's rings, in the order of [`IRQS`]: the host's, then +X, -X,
 /// +Y, -Y, +Z, -Z.
-static RX: [RxRing<RX_LEN>; 7] = [const { RxRing::new() }; 7];
+static RINGS: [Rings; 7] = [const { Rings { rx: ByteRing::new(), tx: ByteRing::new() } }; 7];
 
-/// The U(S)ARTs' interrupts, in the order of [`RX`].
-const RX_IRQS: [Interrupt; 7] = [
+/// The U(S)ARTs' interrupts, in the order of [`RINGS`].
+const IRQS: [Interrupt; 7] = [
     Interrupt::USART3,
     Interrupt::USART1,
     Interrupt::USART2,
@@ -164,42 +172,50 @@ const RX_IRQS: [Interrupt; 7] = [
     Interrupt::UART7,
 ];
 
-/// A U(S)ART whose received bytes its interrupt moves into a ring (see
-/// [`super::rx_ring`]), and whose transmitter is polled: a byte not sent
-/// waits in the node's transmit ring, none is lost.
+/// A U(S)ART driven by its interrupt: the handler moves received bytes into
+/// one ring and bytes to send out of another (see [`super::byte_ring`]).
 #[derive(Debug)]
 pub struct Uart {
     regs: Regs,
-    rx: &'static RxRing<RX_LEN>,
+    rings: &'static Rings,
+}
+
+impl core::fmt::Debug for Rings {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Rings").field("rx", &self.rx).field("tx", &self.tx).finish()
+    }
 }
 
 impl Uart {
     /// Sets the rate and enables transmitter, receiver and the receive
-    /// interrupt, whose bytes go to `rx`. The bus clock must be on.
-    fn new(regs: Regs, brr: Brr, rx: &'static RxRing<RX_LEN>) -> Self {
+    /// interrupt; the transmit interrupt is enabled while bytes wait. The
+    /// bus clock must be on.
+    fn new(regs: Regs, brr: Brr, rings: &'static Rings) -> Self {
         let (mantissa, fraction) = (brr.value >> 4, (brr.value & 0xF) as u8);
         with_regs!(regs, r => {
             r.brr().write(|w| w.div_mantissa().set(mantissa).div_fraction().set(fraction));
             r.cr1().write(|w| w.ue().set_bit().te().set_bit().re().set_bit().rxneie().set_bit());
         });
-        Self { regs, rx }
-    }
-
-    fn tx_ready(&self) -> bool {
-        with_regs!(self.regs, r => r.sr().read().txe().bit_is_set())
+        Self { regs, rings }
     }
 
     /// Bytes lost on the way in (overrun, or a full ring); the reliable
     /// channel resent the frames they belonged to.
     pub fn lost(&self) -> u32 {
-        self.rx.lost()
+        self.rings.rx.lost()
     }
 }
 
-/// The receive interrupt's work: every byte the UART holds into `rx`.
+/// A UART's interrupt: every byte it holds into the receive ring, and
+/// bytes from the transmit ring while it takes them.
+fn service(regs: Regs, rings: &Rings) {
+    receive(regs, &rings.rx);
+    transmit(regs, &rings.tx);
+}
+
 /// Reading SR then DR takes the byte and clears an overrun; an overrun
 /// means a byte was lost before this ran.
-fn receive(regs: Regs, rx: &RxRing<RX_LEN>) {
+fn receive(regs: Regs, rx: &ByteRing<RING>) {
     loop {
         let (ready, overrun) = with_regs!(regs, r => {
             let sr = r.sr().read();
@@ -211,52 +227,71 @@ fn receive(regs: Regs, rx: &RxRing<RX_LEN>) {
         if overrun {
             rx.note_lost();
         }
-        rx.push(with_regs!(regs, r => r.dr().read().dr().bits()) as u8);
+        if !rx.push(with_regs!(regs, r => r.dr().read().dr().bits()) as u8) {
+            rx.note_lost();
+        }
+    }
+}
+
+/// Writes while the UART takes bytes and any wait; with none left, turns
+/// the transmit interrupt off (TXE stays set while the line is idle).
+fn transmit(regs: Regs, tx: &ByteRing<RING>) {
+    while with_regs!(regs, r => r.sr().read().txe().bit_is_set()) {
+        if let Some(byte) = tx.pop() {
+            with_regs!(regs, r => r.dr().write(|w| w.dr().set(u16::from(byte))));
+            continue;
+        }
+        with_regs!(regs, r => r.cr1().modify(|_, w| w.txeie().clear_bit()));
+        // The loop may have pushed a byte after the pop above, and its own
+        // enable may have come before this disable: look once more.
+        if tx.is_empty() {
+            return;
+        }
+        with_regs!(regs, r => r.cr1().modify(|_, w| w.txeie().set_bit()));
     }
 }
 
 /// The registers of the U(S)ART at `block`, for its interrupt handler.
 fn regs_at<RB>(block: *const RB) -> &'static RB {
     // SAFETY: `block` is a PAC peripheral's fixed address, valid for ever.
-    // Besides the main loop's handle the handler only reads SR and DR,
-    // which the loop no longer reads for receiving (it reads SR for TXE
-    // only, and reading SR changes nothing by itself).
+    // The loop uses the registers only inside a critical section (starting
+    // the transmitter), so it and the handler never interleave on them.
     unsafe { &*block }
 }
 
 #[interrupt]
 fn USART3() {
-    receive(Regs::Usart(regs_at(pac::USART3::ptr())), &RX[0]);
+    service(Regs::Usart(regs_at(pac::USART3::ptr())), &RINGS[0]);
 }
 
 #[interrupt]
 fn USART1() {
-    receive(Regs::Usart(regs_at(pac::USART1::ptr())), &RX[1]);
+    service(Regs::Usart(regs_at(pac::USART1::ptr())), &RINGS[1]);
 }
 
 #[interrupt]
 fn USART2() {
-    receive(Regs::Usart(regs_at(pac::USART2::ptr())), &RX[2]);
+    service(Regs::Usart(regs_at(pac::USART2::ptr())), &RINGS[2]);
 }
 
 #[interrupt]
 fn UART4() {
-    receive(Regs::Uart(regs_at(pac::UART4::ptr())), &RX[3]);
+    service(Regs::Uart(regs_at(pac::UART4::ptr())), &RINGS[3]);
 }
 
 #[interrupt]
 fn UART5() {
-    receive(Regs::Uart(regs_at(pac::UART5::ptr())), &RX[4]);
+    service(Regs::Uart(regs_at(pac::UART5::ptr())), &RINGS[4]);
 }
 
 #[interrupt]
 fn USART6() {
-    receive(Regs::Usart(regs_at(pac::USART6::ptr())), &RX[5]);
+    service(Regs::Usart(regs_at(pac::USART6::ptr())), &RINGS[5]);
 }
 
 #[interrupt]
 fn UART7() {
-    receive(Regs::Uart(regs_at(pac::UART7::ptr())), &RX[6]);
+    service(Regs::Uart(regs_at(pac::UART7::ptr())), &RINGS[6]);
 }
 
 impl ErrorType for Uart {
@@ -265,7 +300,7 @@ impl ErrorType for Uart {
 
 impl ReadReady for Uart {
     fn read_ready(&mut self) -> Result<bool, Infallible> {
-        Ok(!self.rx.is_empty())
+        Ok(!self.rings.rx.is_empty())
     }
 }
 
@@ -274,7 +309,7 @@ impl Read for Uart {
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, Infallible> {
         let Some(first) = buf.first_mut() else { return Ok(0) };
         *first = loop {
-            if let Some(byte) = self.rx.pop() {
+            if let Some(byte) = self.rings.rx.pop() {
                 break byte;
             }
         };
@@ -284,21 +319,34 @@ impl Read for Uart {
 
 impl WriteReady for Uart {
     fn write_ready(&mut self) -> Result<bool, Infallible> {
-        Ok(self.tx_ready())
+        Ok(!self.rings.tx.is_full())
     }
 }
 
 impl Write for Uart {
-    /// Blocks until there is room (embedded-io's contract); writes one byte.
+    /// Blocks until there is room (embedded-io's contract); queues what
+    /// fits of `buf` and lets the handler send it.
     fn write(&mut self, buf: &[u8]) -> Result<usize, Infallible> {
-        let Some(&first) = buf.first() else { return Ok(0) };
-        while !self.tx_ready() {}
-        with_regs!(self.regs, r => r.dr().write(|w| w.dr().set(u16::from(first))));
-        Ok(1)
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        while self.rings.tx.is_full() {}
+        let queued = buf.iter().take_while(|&&b| self.rings.tx.push(b)).count();
+        // Start the line now rather than at the interrupt's next turn; the
+        // interrupt goes on while the loop is busy elsewhere. (QEMU 7.2's
+        // USART model raises no transmit interrupt: there this start sends
+        // everything, the model taking each byte at once.)
+        let (regs, tx) = (self.regs, &self.rings.tx);
+        cortex_m::interrupt::free(|_| {
+            with_regs!(regs, r => r.cr1().modify(|_, w| w.txeie().set_bit()));
+            transmit(regs, tx);
+        });
+        Ok(queued)
     }
 
+    /// Waits until every queued byte has left the UART.
     fn flush(&mut self) -> Result<(), Infallible> {
-        while !self.tx_ready() {}
+        while !self.rings.tx.is_empty() || !with_regs!(self.regs, r => r.sr().read().tc().bit_is_set()) {}
         Ok(())
     }
 }
@@ -360,14 +408,14 @@ pub fn init() -> Parts {
     alternate!(d, 8, 2); // UART5 RX
     alternate!(c, 8, 6, 7); // USART6: +Z
     alternate!(e, 8, 7, 8); // UART7: -Z
-    let host = Uart::new(Regs::Usart(keep(dp.USART3)), HOST_APB1, &RX[0]);
+    let host = Uart::new(Regs::Usart(keep(dp.USART3)), HOST_APB1, &RINGS[0]);
     let neighbours = [
-        Uart::new(Regs::Usart(keep(dp.USART1)), NEIGHBOUR_APB2, &RX[1]),
-        Uart::new(Regs::Usart(keep(dp.USART2)), NEIGHBOUR_APB1, &RX[2]),
-        Uart::new(Regs::Uart(keep(dp.UART4)), NEIGHBOUR_APB1, &RX[3]),
-        Uart::new(Regs::Uart(keep(dp.UART5)), NEIGHBOUR_APB1, &RX[4]),
-        Uart::new(Regs::Usart(keep(dp.USART6)), NEIGHBOUR_APB2, &RX[5]),
-        Uart::new(Regs::Uart(keep(dp.UART7)), NEIGHBOUR_APB1, &RX[6]),
+        Uart::new(Regs::Usart(keep(dp.USART1)), NEIGHBOUR_APB2, &RINGS[1]),
+        Uart::new(Regs::Usart(keep(dp.USART2)), NEIGHBOUR_APB1, &RINGS[2]),
+        Uart::new(Regs::Uart(keep(dp.UART4)), NEIGHBOUR_APB1, &RINGS[3]),
+        Uart::new(Regs::Uart(keep(dp.UART5)), NEIGHBOUR_APB1, &RINGS[4]),
+        Uart::new(Regs::Usart(keep(dp.USART6)), NEIGHBOUR_APB2, &RINGS[5]),
+        Uart::new(Regs::Uart(keep(dp.UART7)), NEIGHBOUR_APB1, &RINGS[6]),
     ];
     let lights = Lights::new(Led::new(b, LD1_GREEN), Led::new(b, LD3_RED));
     let info = board_info(core);
@@ -464,7 +512,7 @@ pub const WAKE_PERIOD: u32 = 200_000;
 /// into the rings.
 pub fn arm_wakeups() {
     super::wake::start_tick(WAKE_PERIOD);
-    for irq in RX_IRQS {
+    for irq in IRQS {
         // SAFETY: each of these lines has its handler above, which touches
         // nothing but its UART's SR and DR and its ring's producer side.
         unsafe { NVIC::unmask(irq) };
@@ -479,7 +527,7 @@ pub fn arm_wakeups() {
 /// handler once they are unmasked again.
 pub fn sleep() {
     cortex_m::interrupt::free(|_| {
-        if RX.iter().all(RxRing::is_empty) {
+        if RINGS.iter().all(|r| r.rx.is_empty()) {
             cortex_m::asm::wfi();
         }
     });
