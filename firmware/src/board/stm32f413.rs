@@ -234,28 +234,25 @@ fn receive(regs: Regs, rx: &ByteRing<RING>) {
 }
 
 /// Writes while the UART takes bytes and any wait; with none left, turns
-/// the transmit interrupt off (TXE stays set while the line is idle).
+/// the transmit interrupt off (TXE stays set while the line is idle). No
+/// byte is stranded with it off: the loop starts the transmitter itself
+/// after every byte it queues ([`Uart::write`]).
 fn transmit(regs: Regs, tx: &ByteRing<RING>) {
     while with_regs!(regs, r => r.sr().read().txe().bit_is_set()) {
-        if let Some(byte) = tx.pop() {
-            with_regs!(regs, r => r.dr().write(|w| w.dr().set(u16::from(byte))));
-            continue;
-        }
-        with_regs!(regs, r => r.cr1().modify(|_, w| w.txeie().clear_bit()));
-        // The loop may have pushed a byte after the pop above, and its own
-        // enable may have come before this disable: look once more.
-        if tx.is_empty() {
+        let Some(byte) = tx.pop() else {
+            with_regs!(regs, r => r.cr1().modify(|_, w| w.txeie().clear_bit()));
             return;
-        }
-        with_regs!(regs, r => r.cr1().modify(|_, w| w.txeie().set_bit()));
+        };
+        with_regs!(regs, r => r.dr().write(|w| w.dr().set(u16::from(byte))));
     }
 }
 
 /// The registers of the U(S)ART at `block`, for its interrupt handler.
 fn regs_at<RB>(block: *const RB) -> &'static RB {
     // SAFETY: `block` is a PAC peripheral's fixed address, valid for ever.
-    // The loop uses the registers only inside a critical section (starting
-    // the transmitter), so it and the handler never interleave on them.
+    // The loop writes the registers only inside a critical section
+    // (starting the transmitter), so it and the handler never interleave
+    // on them; outside one it only reads SR (for TC, in a flush).
     unsafe { &*block }
 }
 
@@ -325,7 +322,7 @@ impl WriteReady for Uart {
 
 impl Write for Uart {
     /// Blocks until there is room (embedded-io's contract); queues what
-    /// fits of `buf` and lets the handler send it.
+    /// fits of `buf`, starts the transmitter and lets the handler go on.
     fn write(&mut self, buf: &[u8]) -> Result<usize, Infallible> {
         if buf.is_empty() {
             return Ok(0);
