@@ -366,7 +366,7 @@ mod tests {
         // Merged with another such ray of its pixel: two pixels' credit
         // (eight bytes), the counts and the background count.
         let mut two = miss;
-        two.merge(miss).unwrap();
+        assert_eq!(two.merge(miss), Ok(()));
         assert_eq!(two.background, 2);
         assert_eq!(wire(&[two]).len(), 1 + 1 + 2 + 8 + 2 + 1);
         let blocked = Retire { rgb: [0; 3], credit: PIXEL_CREDIT / 3, ..miss };

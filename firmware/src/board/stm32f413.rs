@@ -161,17 +161,6 @@ struct Rings {
 /// +Y, -Y, +Z, -Z.
 static RINGS: [Rings; 7] = [const { Rings { rx: ByteRing::new(), tx: ByteRing::new() } }; 7];
 
-/// The U(S)ARTs' interrupts, in the order of [`RINGS`].
-const IRQS: [Interrupt; 7] = [
-    Interrupt::USART3,
-    Interrupt::USART1,
-    Interrupt::USART2,
-    Interrupt::UART4,
-    Interrupt::UART5,
-    Interrupt::USART6,
-    Interrupt::UART7,
-];
-
 /// A U(S)ART driven by its interrupt: the handler moves received bytes into
 /// one ring and bytes to send out of another (see [`super::byte_ring`]).
 #[derive(Debug)]
@@ -197,12 +186,6 @@ impl Uart {
             r.cr1().write(|w| w.ue().set_bit().te().set_bit().re().set_bit().rxneie().set_bit());
         });
         Self { regs, rings }
-    }
-
-    /// Bytes lost on the way in (overrun, or a full ring); the reliable
-    /// channel resent the frames they belonged to.
-    pub fn lost(&self) -> u32 {
-        self.rings.rx.lost()
     }
 }
 
@@ -256,39 +239,30 @@ fn regs_at<RB>(block: *const RB) -> &'static RB {
     unsafe { &*block }
 }
 
-#[interrupt]
-fn USART3() {
-    service(Regs::Usart(regs_at(pac::USART3::ptr())), &RINGS[0]);
+/// Each U(S)ART's interrupt handler, and [`IRQS`], from one list: the
+/// index of its rings in [`RINGS`], its name (interrupt and peripheral
+/// alike) and its register block's kind.
+macro_rules! uart_interrupts {
+    ($($ring:literal: $name:ident $kind:ident),+ $(,)?) => {
+        /// The U(S)ARTs' interrupts, in the order of [`RINGS`].
+        const IRQS: [Interrupt; 7] = [$(Interrupt::$name),+];
+        $(
+            #[interrupt]
+            fn $name() {
+                service(Regs::$kind(regs_at(pac::$name::ptr())), &RINGS[$ring]);
+            }
+        )+
+    };
 }
 
-#[interrupt]
-fn USART1() {
-    service(Regs::Usart(regs_at(pac::USART1::ptr())), &RINGS[1]);
-}
-
-#[interrupt]
-fn USART2() {
-    service(Regs::Usart(regs_at(pac::USART2::ptr())), &RINGS[2]);
-}
-
-#[interrupt]
-fn UART4() {
-    service(Regs::Uart(regs_at(pac::UART4::ptr())), &RINGS[3]);
-}
-
-#[interrupt]
-fn UART5() {
-    service(Regs::Uart(regs_at(pac::UART5::ptr())), &RINGS[4]);
-}
-
-#[interrupt]
-fn USART6() {
-    service(Regs::Usart(regs_at(pac::USART6::ptr())), &RINGS[5]);
-}
-
-#[interrupt]
-fn UART7() {
-    service(Regs::Uart(regs_at(pac::UART7::ptr())), &RINGS[6]);
+uart_interrupts! {
+    0: USART3 Usart,
+    1: USART1 Usart,
+    2: USART2 Usart,
+    3: UART4 Uart,
+    4: UART5 Uart,
+    5: USART6 Usart,
+    6: UART7 Uart,
 }
 
 impl ErrorType for Uart {
