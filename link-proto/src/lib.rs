@@ -21,6 +21,7 @@ pub mod board;
 pub mod cobs;
 mod crc32c;
 pub mod frame;
+pub mod health;
 pub mod message;
 mod pack;
 pub mod ray_wire;
@@ -31,9 +32,10 @@ pub use board::{BoardId, BoardInfo, BoardKind, ClockSource, FirmwareVersion, Pee
 pub use frame::{
     DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_PAYLOAD_LEN, encode_frame, encode_parts,
 };
+pub use health::{LinkHealth, PortHealth};
 pub use message::*;
 pub use site::{Found, Site};
 
 /// Version of the wire protocol; nodes and host exchange it in [`Hello`].
 /// Bump it whenever a message changes shape (postcard carries no field names).
-pub const PROTOCOL_VERSION: u16 = 16;
+pub const PROTOCOL_VERSION: u16 = 17;

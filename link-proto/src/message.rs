@@ -12,6 +12,7 @@ use postcard::experimental::max_size::MaxSize;
 use serde::{Deserialize, Serialize};
 
 use crate::board::{BoardInfo, PeerNote};
+use crate::health::LinkHealth;
 pub use crate::retirements::{Retire, Retirements};
 
 /// A frame's sequence number on its link. It wraps at 2^8: a window holds
@@ -110,6 +111,9 @@ pub enum Message {
     /// Node to host: the board at the end of one neighbour link, learnt from
     /// its hello (again for every new host session).
     Peer(PeerNote),
+    /// Node to host: frames resent and damaged on each port since the last
+    /// such report; sent before a frame's final load, and only after trouble.
+    LinkHealth(LinkHealth),
 }
 
 impl Message {
@@ -142,6 +146,7 @@ impl Message {
             Message::Grant(_) => MessageKind::Grant,
             Message::GrantedRay(_) => MessageKind::GrantedRay,
             Message::Peer(_) => MessageKind::Peer,
+            Message::LinkHealth(_) => MessageKind::LinkHealth,
         }
     }
 
@@ -207,11 +212,13 @@ pub enum MessageKind {
     GrantedRay,
     /// [`Message::Peer`].
     Peer,
+    /// [`Message::LinkHealth`].
+    LinkHealth,
 }
 
 impl MessageKind {
     /// Every kind, in variant order.
-    pub const ALL: [MessageKind; 26] = [
+    pub const ALL: [MessageKind; 27] = [
         MessageKind::Hello,
         MessageKind::SceneBegin,
         MessageKind::Sphere,
@@ -238,6 +245,7 @@ impl MessageKind {
         MessageKind::Grant,
         MessageKind::GrantedRay,
         MessageKind::Peer,
+        MessageKind::LinkHealth,
     ];
 }
 

@@ -8,7 +8,7 @@
 //! what is due.
 
 use heapless::Deque;
-use link_proto::{MAX_FRAME_LEN, Message};
+use link_proto::{MAX_FRAME_LEN, Message, PortHealth};
 
 use crate::link::{Links, Port};
 use crate::reliable::{Channel, ChannelStats};
@@ -121,6 +121,13 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
 impl<const W: usize, const Q: usize> Links for FramedLinks<W, Q> {
     fn cabled(&self, port: Port) -> bool {
         self.uncabled.get(port.index()).is_some_and(|&u| !u)
+    }
+
+    fn health(&self, port: Port) -> PortHealth {
+        self.channels.get(port.index()).map_or_else(PortHealth::default, |c| PortHealth {
+            resent: c.stats.retransmitted,
+            damaged: c.stats.corrupted,
+        })
     }
 
     fn recv(&mut self, port: Port) -> Option<Message> {

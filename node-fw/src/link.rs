@@ -6,7 +6,7 @@
 //! UARTs on real boards. Receiving never blocks the node; sending hands the
 //! message back when the link is full (back-pressure, never a drop).
 
-use link_proto::Message;
+use link_proto::{Message, PortHealth};
 
 /// One of a node's seven ports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -101,5 +101,11 @@ pub trait Links {
     /// waits in the channel for a peer that may never come.
     fn cabled(&self, _port: Port) -> bool {
         true
+    }
+    /// Frames resent on `port` and frames that reached it damaged, counted
+    /// since the links began. Links that lose nothing, such as in-memory
+    /// queues, count none.
+    fn health(&self, _port: Port) -> PortHealth {
+        PortHealth::default()
     }
 }

@@ -512,8 +512,8 @@ pub fn progresses(msg: &Message) -> bool {
     match msg {
         Message::Load(l) => l.interval == node_fw::node::FINAL_INTERVAL,
         // Boundaries may slide for ever while rays are stuck: not progress.
-        // Nor is news of the cables.
-        Message::SlideNote(_) | Message::SlideReply(_) | Message::Peer(_) => false,
+        // Nor is news of the cables and links.
+        Message::SlideNote(_) | Message::SlideReply(_) | Message::Peer(_) | Message::LinkHealth(_) => false,
         _ => true,
     }
 }

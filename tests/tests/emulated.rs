@@ -14,6 +14,7 @@ use host_tool::error::HostError;
 use host_tool::plan::Plan;
 use host_tool::plan::options::RenderOptions;
 use host_tool::results::RenderResult;
+use host_tool::results::files::link_troubles;
 use host_tool::scene::Scene;
 use host_tool::session::backend::{Backend, Rendered};
 use host_tool::session::clock::HostMicros;
@@ -366,6 +367,10 @@ fn emulated_boards_under_link_faults_render_the_clean_image() {
     assert_eq!(faulty.frame.rays_created, faulty.frame.rays_terminated, "every ray accounted for");
     // The faults happened: the host's channels saw damaged frames and resent.
     assert!(faulty.links.corrupted > 0 && faulty.links.retransmitted > 0, "{:?}", faulty.links);
+    // And the boards told the host of the damage they took, which the host
+    // sees no other way.
+    let told = link_troubles(&faulty);
+    assert!(told.damaged > 0 && told.resent > 0, "{told:?}");
 }
 
 /// A sequence on emulated boards: the scene sent once, three orbiting frames

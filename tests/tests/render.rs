@@ -4,6 +4,7 @@
 use host_tool::compare::compare;
 use host_tool::plan::options::{Initial, Layout, RenderOptions};
 use host_tool::plan::{check_frame, initial_partition};
+use host_tool::results::files::link_troubles;
 use host_tool::results::image::{to_srgb8, to_srgb8_mean};
 use host_tool::scene::{Light, Scene, SphereDesc};
 use host_tool::session::clock::Cycles;
@@ -350,6 +351,17 @@ fn lossy_links_keep_the_image_bit_identical() {
         assert!(r.frame.sums == want.sums, "seed {seed}: faults changed the image");
         assert!(r.links.retransmitted > 50, "seed {seed}: {:?}", r.links);
         assert!(r.links.corrupted > 10, "seed {seed}: {:?}", r.links);
+        // The nodes told the host of their own link ends, the links between
+        // them included; the host's ends make up the rest of the board's count.
+        let told = link_troubles(&r);
+        assert!(
+            told.resent > 0 && told.resent <= r.links.retransmitted,
+            "seed {seed}: {told:?} {:?}",
+            r.links
+        );
+        assert!(told.damaged > 0 && told.damaged <= r.links.corrupted, "seed {seed}: {told:?} {:?}", r.links);
+        let between_nodes = r.frame.link_health.iter().flat_map(|p| &p[..6]).any(|p| p.damaged > 0);
+        assert!(between_nodes, "seed {seed}: no damage told on a neighbour port");
     }
     // Duplicates and delays (reordering) on top.
     let mut opts = RenderOptions::new([2, 2, 2]);

@@ -4,6 +4,7 @@
 
 use std::collections::BTreeMap;
 
+use link_proto::PortHealth;
 use serde_json::json;
 use sim_board::Busy;
 
@@ -24,9 +25,8 @@ fn busy_json(b: &Busy, waiting: u64) -> serde_json::Value {
 /// fraction of the frame's makespan the wire out spent carrying them (where
 /// the links are modelled in the cycles the makespan counts).
 fn ports_json<T: Clock>(opts: &RenderOptions, r: &RenderResult<T>, id: usize) -> serde_json::Value {
-    let names = ["+x", "-x", "+y", "-y", "+z", "-z", "host"];
     let mut ports = serde_json::Map::new();
-    for (p, name) in names.iter().enumerate() {
+    for (p, name) in PORT_NAMES.iter().enumerate() {
         let bytes = r.bytes[id][p];
         let received = r.bytes_in.get(id).map_or(0, |b| b[p]);
         let spec = if p == 6 { &opts.sim.host_link } else { &opts.sim.link };
@@ -38,6 +38,36 @@ fn ports_json<T: Clock>(opts: &RenderOptions, r: &RenderResult<T>, id: usize) ->
         }
     }
     serde_json::Value::Object(ports)
+}
+
+/// The names of a node's ports, in port order.
+pub const PORT_NAMES: [&str; 7] = ["+x", "-x", "+y", "-y", "+z", "-z", "host"];
+
+/// The ports of one node whose links had trouble, with what went wrong.
+fn link_troubles_json(ports: &[PortHealth; 7]) -> serde_json::Value {
+    let troubled = PORT_NAMES.iter().zip(ports).filter(|(_, p)| !p.is_clean());
+    let map = troubled.map(|(name, p)| (name.to_string(), json!({"resent": p.resent, "damaged": p.damaged})));
+    serde_json::Value::Object(map.collect())
+}
+
+/// The frame's link troubles over every node and port, as the nodes told them.
+pub fn link_troubles<T>(r: &RenderResult<T>) -> PortHealth {
+    let mut total = PortHealth::default();
+    for p in r.frame.link_health.iter().flatten() {
+        total += *p;
+    }
+    total
+}
+
+/// The node and port that resent and took damaged the most frames, if any did.
+pub fn worst_link<T>(r: &RenderResult<T>) -> Option<(usize, &'static str, PortHealth)> {
+    let ports = r
+        .frame
+        .link_health
+        .iter()
+        .enumerate()
+        .flat_map(|(id, ports)| ports.iter().zip(PORT_NAMES).map(move |(p, name)| (id, name, *p)));
+    ports.filter(|(_, _, p)| !p.is_clean()).max_by_key(|(_, _, p)| u64::from(p.resent) + u64::from(p.damaged))
 }
 
 /// max / mean of the nodes' running time.
@@ -102,11 +132,13 @@ pub fn summary_json<T: Clock>(
                 "bytes_sent": r.bytes[id].iter().sum::<u64>(),
                 "busy": r.busy.get(id).copied().flatten().map(|b| busy_json(&b, l.waiting)),
                 "ports": modelled.then(|| ports_json(opts, r, id)),
+                "link_troubles": f.link_health.get(id).map(link_troubles_json),
             })
         })
         .collect();
     let total = r.busy.iter().flatten().copied().sum::<Busy>();
     let waiting: u64 = f.loads.iter().flatten().map(|l| l.waiting).sum();
+    let troubles = link_troubles(r);
     let v = json!({
         "backend": from.backend,
         "versions": {"host_tool": env!("CARGO_PKG_VERSION"), "protocol": link_proto::PROTOCOL_VERSION},
@@ -155,6 +187,9 @@ pub fn summary_json<T: Clock>(
         "retransmissions": r.links.retransmitted,
         "corrupted_frames": r.links.corrupted,
         "discarded_frames": r.links.discarded,
+        // What the nodes told of their own link ends (on boards, the only
+        // word of the links between them).
+        "link_troubles": {"resent": troubles.resent, "damaged": troubles.damaged},
         "wall_seconds": r.wall.as_secs_f64(),
         "nodes": nodes,
     });

@@ -8,8 +8,10 @@ use std::fs::File;
 use std::io::BufWriter;
 use std::path::PathBuf;
 
+use link_proto::PortHealth;
+
 use crate::error::HostError;
-use crate::results::files::imbalance;
+use crate::results::files::{imbalance, link_troubles};
 use crate::results::output::{Staging, png};
 use crate::results::plot::{self, Chart, Series, Style};
 use crate::session::clock::Clock;
@@ -64,6 +66,8 @@ pub struct FrameRow {
     pub loaded: bool,
     /// Host milliseconds spent planning it.
     pub planning_ms: f64,
+    /// Frames the nodes resent, and took damaged, as they told the host.
+    pub link_troubles: PortHealth,
 }
 
 impl FrameRow {
@@ -82,6 +86,7 @@ impl FrameRow {
             rays: r.frame.rays_terminated,
             loaded: f.loaded,
             planning_ms: f.planning.as_secs_f64() * 1e3,
+            link_troubles: link_troubles(r),
         }
     }
 }
@@ -150,12 +155,12 @@ impl FrameSink for SequenceWriter {
 pub fn frames_csv(rows: &[FrameRow], unit: &str) -> String {
     let mut s = format!(
         "# makespan in {unit}: from the frame's start to its last retirement (frame 0's includes sending the scene)\n\
-         frame,makespan,imbalance,slides,messages,neighbour_bytes,host_bytes,rays,loaded,planning_ms\n"
+         frame,makespan,imbalance,slides,messages,neighbour_bytes,host_bytes,rays,loaded,planning_ms,resent,damaged\n"
     );
     for r in rows {
         let messages = r.messages.map_or(String::new(), |m| m.to_string());
         s += &format!(
-            "{},{},{:.4},{},{messages},{},{},{},{},{:.1}\n",
+            "{},{},{:.4},{},{messages},{},{},{},{},{:.1},{},{}\n",
             r.frame,
             r.makespan,
             r.imbalance,
@@ -164,7 +169,9 @@ pub fn frames_csv(rows: &[FrameRow], unit: &str) -> String {
             r.host_bytes,
             r.rays,
             u8::from(r.loaded),
-            r.planning_ms
+            r.planning_ms,
+            r.link_troubles.resent,
+            r.link_troubles.damaged
         );
     }
     s

@@ -1,6 +1,6 @@
 //! The frame buffer: integer pixel sums, credit accounting, loads, errors.
 
-use link_proto::{ErrorReport, LoadReport, Message, PROTOCOL_VERSION, Retire, SlideNote};
+use link_proto::{ErrorReport, LoadReport, Message, PROTOCOL_VERSION, PortHealth, Retire, SlideNote};
 
 use crate::error::HostError;
 use crate::session::clock::Clock;
@@ -79,6 +79,10 @@ pub struct FrameBuffer<T> {
     pub slides: Vec<SlideSeen<T>>,
     /// Slides refused for capacity: (arrival time, receiving node, boundary).
     pub refused_slides: Vec<(T, u16, u16)>,
+    /// Per node and port, the frames it resent and took damaged since it
+    /// last told us, as it tells us before its final load (all clean where
+    /// the links lost nothing).
+    pub link_health: Vec<[PortHealth; 7]>,
 }
 
 impl<T: Clock> FrameBuffer<T> {
@@ -106,6 +110,7 @@ impl<T: Clock> FrameBuffer<T> {
             history: Vec::new(),
             slides: Vec::new(),
             refused_slides: Vec::new(),
+            link_health: vec![[PortHealth::default(); 7]; nodes],
         }
     }
 
@@ -164,6 +169,13 @@ impl<T: Clock> Endpoint<T> for FrameBuffer<T> {
             Message::SlideNote(note) => self.slides.push(SlideSeen { at, node, note }),
             Message::SlideReply(r) => self.refused_slides.push((at, node, r.boundary)),
             Message::Error(e) => self.errors.push(e),
+            Message::LinkHealth(h) => {
+                if let Some(ports) = self.link_health.get_mut(usize::from(node)) {
+                    for (sum, p) in ports.iter_mut().zip(h.ports) {
+                        *sum += p;
+                    }
+                }
+            }
             Message::Hello(h) if h.version != PROTOCOL_VERSION => {
                 self.version_mismatch.push((node, h.version))
             }

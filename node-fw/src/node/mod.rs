@@ -32,8 +32,8 @@ use heapless::{Deque, Vec};
 use link_proto::board::version_part;
 use link_proto::{
     Assign, Balance, BoardId, BoardInfo, BoardKind, Capacity, ClockSource, ErrorCode, ErrorReport,
-    FirmwareVersion, Found, Hello, LightMsg, Message, PROTOCOL_VERSION, RayMsg, RenderStart, Retire,
-    SceneHeader, Site,
+    FirmwareVersion, Found, Hello, LightMsg, Message, PROTOCOL_VERSION, PortHealth, RayMsg, RenderStart,
+    Retire, SceneHeader, Site,
 };
 
 use crate::error::Error;
@@ -178,6 +178,8 @@ pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> 
     control: Deque<(Port, Message), 16>,
     /// Frames this node has ended since its session began.
     frames_ended: u32,
+    /// Each port's counts ([`Links::health`]) when the host last heard them.
+    health_told: [PortHealth; 7],
 }
 
 /// Interval of the final load report sent after `Finish`.
@@ -234,6 +236,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             slide: SlideState::new(),
             control: Deque::new(),
             frames_ended: 0,
+            health_told: [PortHealth { resent: 0, damaged: 0 }; 7],
         }
     }
 

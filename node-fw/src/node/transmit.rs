@@ -1,7 +1,9 @@
 //! Sending: replies, notices, rays and retirements, control messages and
 //! slabs, as far as the links take them this poll.
 
-use link_proto::{ErrorCode, Finish, LoadReport, Message, PeerNote, Retire, Retirements, Site};
+use link_proto::{
+    ErrorCode, Finish, LinkHealth, LoadReport, Message, PeerNote, PortHealth, Retire, Retirements, Site,
+};
 
 use crate::link::{Links, Port};
 use crate::pool::Stage;
@@ -91,6 +93,11 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
         self.stream_slabs(links, &mut send);
         if let Some(frame) = self.load_due.filter(|&f| f != FINAL_INTERVAL || self.settled()) {
+            // The host has the frame's link troubles by the time it has every
+            // final report: both travel the host link, in order.
+            if frame == FINAL_INTERVAL && !self.tell_link_health(links, &mut send) {
+                return;
+            }
             let report = LoadReport {
                 node: self.id,
                 interval: frame,
@@ -107,6 +114,28 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 self.load_due = None;
             }
         }
+    }
+
+    /// Tells the host what went wrong on each port since it last heard, if
+    /// anything did; whether nothing is left to tell.
+    fn tell_link_health<L: Links>(
+        &mut self,
+        links: &mut L,
+        send: &mut impl FnMut(&mut L, Port, Message) -> bool,
+    ) -> bool {
+        let now = Port::ALL.map(|p| links.health(p));
+        let mut ports = now;
+        for (p, told) in ports.iter_mut().zip(&self.health_told) {
+            *p = p.since(*told);
+        }
+        if ports.iter().all(PortHealth::is_clean) {
+            return true;
+        }
+        let told = send(links, Port::Host, Message::LinkHealth(LinkHealth { node: self.id, ports }));
+        if told {
+            self.health_told = now;
+        }
+        told
     }
 
     /// Whether nothing of the frame is still under way: no slide, and no
