@@ -20,6 +20,7 @@
 pub mod board;
 pub mod cobs;
 mod crc32c;
+pub mod credit;
 pub mod frame;
 pub mod health;
 pub mod message;
@@ -38,4 +39,4 @@ pub use site::{Found, Site};
 
 /// Version of the wire protocol; nodes and host exchange it in [`Hello`].
 /// Bump it whenever a message changes shape (postcard carries no field names).
-pub const PROTOCOL_VERSION: u16 = 17;
+pub const PROTOCOL_VERSION: u16 = 18;

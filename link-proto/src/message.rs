@@ -354,6 +354,10 @@ pub struct Capacity {
     pub rays: u16,
 }
 
+/// The most reflections along one path a scene may ask for: it bounds ray
+/// classes and how often a pixel's credit is split (see `node_fw::credit`).
+pub const MAX_DEPTH: u8 = 8;
+
 /// Scene-wide settings, sent before the spheres and lights.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
 pub struct SceneHeader {
@@ -363,7 +367,7 @@ pub struct SceneHeader {
     pub ambient: [u16; 3],
     /// Colour of rays that leave the grid, Q1.15.
     pub background: [u16; 3],
-    /// Maximum number of reflections along one path.
+    /// Maximum number of reflections along one path (at most [`MAX_DEPTH`]).
     pub max_depth: u8,
 }
 

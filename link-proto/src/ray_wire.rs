@@ -9,9 +9,10 @@
 //!   sends [`ORIGIN_AT_EYE`] in its place and it takes no bytes;
 //! - weights at full strength (every primary ray) take none, weights under
 //!   2^16 two bytes each, else four;
-//! - credit of exactly 2^32 (a primary ray's) takes none, under 2^32 (every
-//!   other ray's: a hit splits its ray's credit among its children) four
-//!   bytes, else eight;
+//! - credit of exactly 2^32 (a primary ray's) takes none; an odd multiple
+//!   up to 7 of a power of two (every other ray's: a hit splits its ray's
+//!   credit among its children by powers of two) one byte
+//!   ([`crate::credit`]); any other under 2^32 four bytes, else eight;
 //! - any other origin inside the grid's first 256 cubes (every reflected or
 //!   shadow ray's: it starts on a sphere the grid holds) three bytes a
 //!   component, else four;
@@ -31,6 +32,7 @@
 use serde::de::{Error as _, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
+use crate::credit;
 use crate::message::{HitMsg, MaterialMsg, RayKind, RayMsg, SphereMsg};
 use crate::pack::{Reader, Writer};
 
@@ -59,6 +61,8 @@ const CREDIT_MASK: u8 = 0b11 << CREDIT_SHIFT;
 const CREDIT_PRIMARY: u8 = 0;
 const CREDIT_SHORT: u8 = 1 << CREDIT_SHIFT;
 const CREDIT_LONG: u8 = 2 << CREDIT_SHIFT;
+/// A share a hit split off (a power of two): one byte ([`crate::credit`]).
+const CREDIT_SCALED: u8 = 3 << CREDIT_SHIFT;
 /// Cells two bytes each and the pixel four, for a cell or a pixel out of the short forms.
 const WIDE: u8 = 1 << 4;
 /// The origin in three bytes a component.
@@ -131,6 +135,7 @@ fn flags_of(ray: &RayMsg) -> [u8; 2] {
     };
     let credit = match ray.credit {
         PIXEL_CREDIT => CREDIT_PRIMARY,
+        c if credit::to_byte(c).is_some() => CREDIT_SCALED,
         c if c <= u64::from(u32::MAX) => CREDIT_SHORT,
         _ => CREDIT_LONG,
     };
@@ -189,6 +194,7 @@ pub fn encode_ray(ray: &RayMsg, out: &mut [u8]) -> Option<usize> {
     }
     let credit = ray.credit.to_le_bytes();
     match forms & CREDIT_MASK {
+        CREDIT_SCALED => w.put(&[credit::to_byte(ray.credit)?])?,
         CREDIT_SHORT => w.put(credit.get(..4)?)?,
         CREDIT_LONG => w.put(&credit)?,
         _ => {}
@@ -261,12 +267,14 @@ pub fn decode_ray(bytes: &[u8]) -> Option<RayMsg> {
         WEIGHTS_LONG => Some([r.u32()?, r.u32()?, r.u32()?]).filter(|w| w.iter().any(|&w| w > 0xffff))?,
         _ => return None,
     };
+    // Each credit has one form, the encoder's: the shortest that holds it.
+    let scaled = |c: u64| credit::to_byte(c).is_some();
     let credit = match forms & CREDIT_MASK {
         CREDIT_PRIMARY => PIXEL_CREDIT,
-        CREDIT_SHORT => u64::from(r.u32()?),
-        CREDIT_LONG => {
-            Some(u64::from_le_bytes(r.take()?)).filter(|&c| c > u64::from(u32::MAX) && c != PIXEL_CREDIT)?
-        }
+        CREDIT_SCALED => credit::from_byte(r.u8()?).filter(|&c| c != PIXEL_CREDIT)?,
+        CREDIT_SHORT => Some(u64::from(r.u32()?)).filter(|&c| !scaled(c))?,
+        CREDIT_LONG => Some(u64::from_le_bytes(r.take()?))
+            .filter(|&c| c > u64::from(u32::MAX) && c != PIXEL_CREDIT && !scaled(c))?,
         _ => return None,
     };
     let class = if flags & WIDE_CLASS != 0 { r.u16().filter(|&c| c > 0xff)? } else { u16::from(r.u8()?) };
@@ -453,8 +461,16 @@ mod tests {
                 reflect: 8,
             },
         };
-        let credit =
-            prop_oneof![Just(PIXEL_CREDIT), (1u64 << 32) - 2..(1u64 << 32) + 3, 0u64..1 << 33, any::<u64>()];
+        // Shares a hit splits off (powers of two, small odd multiples of them),
+        // and any other.
+        let scaled = (0u32..64, 0u64..4).prop_map(|(e, i)| (2 * i + 1).checked_shl(e).unwrap_or(1));
+        let credit = prop_oneof![
+            Just(PIXEL_CREDIT),
+            scaled,
+            (1u64 << 32) - 2..(1u64 << 32) + 3,
+            0u64..1 << 33,
+            any::<u64>()
+        ];
         let origin = prop_oneof![
             Just(ORIGIN_AT_EYE),
             proptest::array::uniform3(prop_oneof![Just(i32::MIN), any::<i32>()]),
@@ -514,19 +530,22 @@ mod tests {
     fn forms_fitting(r: &RayMsg) -> Vec<Forms> {
         let fits = |v: &[u32], max: u32| v.iter().all(|&x| x <= max);
         let cells = r.cell.map(u32::from);
-        let (weights, credits) =
-            ([WEIGHTS_FULL, WEIGHTS_SHORT, WEIGHTS_LONG], [CREDIT_PRIMARY, CREDIT_SHORT, CREDIT_LONG]);
+        let (weights, credits) = (
+            [WEIGHTS_FULL, WEIGHTS_SHORT, WEIGHTS_LONG],
+            [CREDIT_PRIMARY, CREDIT_SHORT, CREDIT_LONG, CREDIT_SCALED],
+        );
         let origins = [Origin::AtEye, Origin::Short, Origin::Long];
-        // Two ways for four fields, three for three: 432 choices, by mixed radix.
-        (0..2 * 3 * 2 * 3 * 3 * 2 * 2)
+        // Two ways for four fields, three for two, four for one: 576 choices,
+        // by mixed radix.
+        (0..2 * 3 * 2 * 3 * 4 * 2 * 2)
             .map(|i: usize| Forms {
                 escaped_depth: i % 2 == 1,
                 origin: origins[i / 2 % 3],
                 wide: i / 6 % 2 == 1,
                 weights: weights[i / 12 % 3],
-                credit: credits[i / 36 % 3],
-                wide_class: i / 108 % 2 == 1,
-                tag: i / 216 % 2 == 1,
+                credit: credits[i / 36 % 4],
+                wide_class: i / 144 % 2 == 1,
+                tag: i / 288 % 2 == 1,
             })
             .filter(|f| f.escaped_depth || r.depth < DEPTH_ESCAPE)
             .filter(|f| match f.origin {
@@ -543,11 +562,23 @@ mod tests {
             .filter(|f| match f.credit {
                 CREDIT_PRIMARY => r.credit == PIXEL_CREDIT,
                 CREDIT_SHORT => r.credit < 1 << 32,
+                CREDIT_SCALED => scaled_byte(r.credit).is_some(),
                 _ => true,
             })
             .filter(|f| f.wide_class || r.class <= 0xff)
             .filter(|f| f.tag || r.tag == 0)
             .collect()
+    }
+
+    /// The scaled byte of `credit`, found by search: `m 2^e` with `m` odd
+    /// and at most 7, as `e | (m - 1) / 2 << 6`.
+    fn scaled_byte(credit: u64) -> Option<u8> {
+        (0..64u32).find_map(|e| {
+            [1u8, 3, 5, 7]
+                .into_iter()
+                .find(|&m| u128::from(m) << e == u128::from(credit))
+                .map(|m| e as u8 | (((m - 1) / 2) << 6))
+        })
     }
 
     /// `r` written in the layout the module documents, in forms `f`: the
@@ -587,6 +618,7 @@ mod tests {
             _ => {}
         }
         match f.credit {
+            CREDIT_SCALED => b.extend(scaled_byte(r.credit)),
             CREDIT_SHORT => b.extend(&r.credit.to_le_bytes()[..4]),
             CREDIT_LONG => b.extend(r.credit.to_le_bytes()),
             _ => {}

@@ -13,6 +13,7 @@ use serde::de::Visitor;
 use serde::ser::Error as _;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
+use crate::credit;
 use crate::pack::{Reader, Writer};
 use crate::ray_wire::PIXEL_CREDIT;
 
@@ -141,7 +142,9 @@ impl Eq for Retirements {}
 // primary ray's whole credit (a five-byte varint) and counts of one ray.
 //
 // Layout of a record: flags, pixel (varint), [rgb (3 varints)], [credit
-// (u32 or u64, little-endian)], [spawned, rays], [background]. Each record
+// (a byte, or u32 or u64 little-endian)], [spawned, rays], [background]. A
+// ray's share of its pixel's credit is a power of two, and a parent's what
+// its children left, so most credits take the byte. Each record
 // has exactly one encoding: bytes that are not the encoder's choice are
 // refused.
 //
@@ -160,6 +163,8 @@ const CREDIT_MASK: u8 = 0b11 << CREDIT_SHIFT;
 const CREDIT_PIXEL: u8 = 0;
 const CREDIT_SHORT: u8 = 1 << CREDIT_SHIFT;
 const CREDIT_LONG: u8 = 2 << CREDIT_SHIFT;
+/// A share a hit split off, or a small sum of them: one byte ([`credit`]).
+const CREDIT_SCALED: u8 = 3 << CREDIT_SHIFT;
 const BACKGROUND_SHIFT: u32 = 4;
 const BACKGROUND_MASK: u8 = 0b11 << BACKGROUND_SHIFT;
 /// No ray at full strength left the scene: no byte.
@@ -176,12 +181,45 @@ const RECORD_MAX_LEN: usize = 1 + 5 + 15 + 8 + 2 + 1;
 const WIRE_MAX_LEN: usize = Retirements::CAPACITY * RECORD_MAX_LEN;
 const _: () = assert!(WIRE_MAX_LEN < 128, "the byte string's length must stay one varint byte");
 
+/// The shortest form of a record's credit.
+#[derive(Clone, Copy)]
+enum CreditForm {
+    /// A primary ray's whole credit.
+    Pixel,
+    /// Its byte ([`credit`]).
+    Scaled(u8),
+    /// Four bytes.
+    Short,
+    /// Eight.
+    Long,
+}
+
+impl CreditForm {
+    fn of(c: u64) -> Self {
+        match (c, credit::to_byte(c)) {
+            (PIXEL_CREDIT, _) => Self::Pixel,
+            (_, Some(b)) => Self::Scaled(b),
+            (c, None) if c <= u64::from(u32::MAX) => Self::Short,
+            _ => Self::Long,
+        }
+    }
+
+    fn flag(self) -> u8 {
+        match self {
+            Self::Pixel => CREDIT_PIXEL,
+            Self::Scaled(_) => CREDIT_SCALED,
+            Self::Short => CREDIT_SHORT,
+            Self::Long => CREDIT_LONG,
+        }
+    }
+}
+
 fn flags_of(r: &Retire) -> u8 {
-    let mut flags = match r.credit {
-        PIXEL_CREDIT => CREDIT_PIXEL,
-        c if c <= u64::from(u32::MAX) => CREDIT_SHORT,
-        _ => CREDIT_LONG,
-    };
+    flags_with(r, CreditForm::of(r.credit))
+}
+
+fn flags_with(r: &Retire, credit: CreditForm) -> u8 {
+    let mut flags = credit.flag();
     if r.rgb == [0; 3] {
         flags |= RGB_ZERO;
     }
@@ -198,7 +236,8 @@ fn flags_of(r: &Retire) -> u8 {
 
 /// Packs `r` after what `w` holds.
 fn encode_record(r: &Retire, w: &mut Writer<'_>) -> Option<()> {
-    let flags = flags_of(r);
+    let form = CreditForm::of(r.credit);
+    let flags = flags_with(r, form);
     w.put(&[flags])?;
     w.varint(r.pixel)?;
     if flags & RGB_ZERO == 0 {
@@ -206,10 +245,11 @@ fn encode_record(r: &Retire, w: &mut Writer<'_>) -> Option<()> {
             w.varint(c)?;
         }
     }
-    match flags & CREDIT_MASK {
-        CREDIT_SHORT => w.put(&(r.credit as u32).to_le_bytes())?,
-        CREDIT_LONG => w.put(&r.credit.to_le_bytes())?,
-        _ => {}
+    match form {
+        CreditForm::Pixel => {}
+        CreditForm::Scaled(b) => w.put(&[b])?,
+        CreditForm::Short => w.put(&(r.credit as u32).to_le_bytes())?,
+        CreditForm::Long => w.put(&r.credit.to_le_bytes())?,
     }
     if flags & ONE_RAY == 0 {
         w.put(&[r.spawned, r.rays])?;
@@ -230,6 +270,7 @@ fn decode_record(r: &mut Reader<'_>) -> Option<Retire> {
     let rgb = if flags & RGB_ZERO != 0 { [0; 3] } else { [r.varint()?, r.varint()?, r.varint()?] };
     let credit = match flags & CREDIT_MASK {
         CREDIT_PIXEL => PIXEL_CREDIT,
+        CREDIT_SCALED => credit::from_byte(r.u8()?)?,
         CREDIT_SHORT => u64::from(r.u32()?),
         CREDIT_LONG => u64::from_le_bytes(r.take()?),
         _ => return None,
@@ -364,14 +405,19 @@ mod tests {
         let dim = Retire { rgb: [1000, 2000, 30000], background: 0, ..miss };
         assert_eq!(wire(&[dim]).len(), 1 + 1 + 2 + 2 + 2 + 3);
         // Merged with another such ray of its pixel: two pixels' credit
-        // (eight bytes), the counts and the background count.
+        // (2^33, a byte), the counts and the background count.
         let mut two = miss;
         assert_eq!(two.merge(miss), Ok(()));
         assert_eq!(two.background, 2);
-        assert_eq!(wire(&[two]).len(), 1 + 1 + 2 + 8 + 2 + 1);
+        assert_eq!(wire(&[two]).len(), 1 + 1 + 2 + 1 + 2 + 1);
         let blocked = Retire { rgb: [0; 3], credit: PIXEL_CREDIT / 3, ..miss };
         // Flags, pixel, four bytes of credit.
         assert_eq!(wire(&[blocked]).len(), 1 + 1 + 2 + 4);
+        // A shadow ray's share, a power of two, or a parent's, three of one: a byte.
+        for credit in [PIXEL_CREDIT / 16, 3 * PIXEL_CREDIT / 32] {
+            let shadow = Retire { credit, ..blocked };
+            assert_eq!(wire(&[shadow]).len(), 1 + 1 + 2 + 1, "{credit}");
+        }
     }
 
     #[test]
@@ -383,12 +429,25 @@ mod tests {
         longer.extend_from_slice(&[0, 1]);
         longer[0] += 2;
         assert!(postcard::from_bytes::<Retirements>(&longer).is_err());
-        // A short credit written long.
-        let mut long = wire(&[one]);
+        // A one-byte credit written in four or eight.
+        let mut short = wire(&[one]);
+        short[1] = (short[1] & !CREDIT_MASK) | CREDIT_SHORT;
+        short.pop();
+        short.extend_from_slice(&7u32.to_le_bytes());
+        short[0] += 3;
+        assert!(postcard::from_bytes::<Retirements>(&short).is_err());
+        let nine = Retire { credit: 9, ..one };
+        let mut long = wire(&[nine]);
         long[1] = (long[1] & !CREDIT_MASK) | CREDIT_LONG;
         long.extend_from_slice(&[0; 4]);
         long[0] += 4;
         assert!(postcard::from_bytes::<Retirements>(&long).is_err());
+        // The whole credit written as its byte (2^32: exponent 32).
+        let mut whole = wire(&[Retire { credit: PIXEL_CREDIT, ..one }]);
+        whole[1] = (whole[1] & !CREDIT_MASK) | CREDIT_SCALED;
+        whole.push(32);
+        whole[0] += 1;
+        assert!(postcard::from_bytes::<Retirements>(&whole).is_err());
         // A flag no encoder sets.
         let mut odd = wire(&[one]);
         odd[1] |= 1 << 7;
@@ -422,6 +481,7 @@ mod tests {
                     ],
                     proptest::prop_oneof![
                         proptest::strategy::Just(PIXEL_CREDIT),
+                        proptest::strategy::Strategy::prop_map((0u32..64, 0u64..4), |(e, i)| (2 * i + 1) << e),
                         0u64..=u64::from(u32::MAX),
                         proptest::num::u64::ANY,
                     ],

@@ -59,11 +59,14 @@ pub enum Site {
     ShadeMissesSphere,
     /// A hit point with no surface there.
     ShadeWithoutSurface,
+    /// A hit on a ray whose credit is too small to split among its
+    /// children (a ray that was not split as the node splits).
+    CreditTooSmall,
 }
 
 impl Site {
     /// Every site, in wire order.
-    pub const ALL: [Site; 25] = [
+    pub const ALL: [Site; 26] = [
         Site::ControlQueueFull,
         Site::SlideMessage,
         Site::OfferDuringSlide,
@@ -89,6 +92,7 @@ impl Site {
         Site::ShadeWithoutLine,
         Site::ShadeMissesSphere,
         Site::ShadeWithoutSurface,
+        Site::CreditTooSmall,
     ];
 
     /// The site a report's `b` names.

@@ -22,6 +22,8 @@ pub enum Field {
     Subregion = 7,
     /// A ray parameter.
     Parameter = 8,
+    /// The reflection depth (at most [`link_proto::MAX_DEPTH`]).
+    Depth = 9,
 }
 
 /// Everything that can go wrong in a node.

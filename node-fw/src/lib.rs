@@ -15,6 +15,7 @@
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 pub mod camera;
+pub mod credit;
 pub mod cube_box;
 pub mod digital_line;
 pub mod error;

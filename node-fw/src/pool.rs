@@ -36,6 +36,7 @@
 
 use link_proto::{Boundaries, RayMsg, Retire};
 
+use crate::credit::Split;
 use crate::link::Port;
 
 /// Largest number of class levels a pool supports.
@@ -78,14 +79,14 @@ pub enum Stage {
     /// To be traced through this node's subregion.
     Trace,
     /// Hit found (the ray's `best`); children `next..` still to spawn, each
-    /// with `share` credit.
+    /// with its share of the credit as `split` says.
     Shade {
         /// Next child candidate (lights in order, then the reflection).
         next: u8,
         /// Children the hit spawns in all.
         children: u8,
-        /// Credit each child takes.
-        share: u64,
+        /// The children's shares of the credit.
+        split: Split,
         /// The parent's own contribution (ambient, and children resolved at once).
         rgb: [u32; 3],
     },
@@ -566,7 +567,9 @@ mod tests {
     fn stage_of(code: u8, port: Port) -> Stage {
         match code % 6 {
             0 => Stage::Trace,
-            1 => Stage::Shade { next: 0, children: 1, share: 1, rgb: [0; 3] },
+            1 => {
+                Stage::Shade { next: 0, children: 1, split: Split { shadow: 1, reflection: 0 }, rgb: [0; 3] }
+            }
             2 => {
                 Stage::Retire(Retire { pixel: 0, rgb: [0; 3], credit: 1, spawned: 0, rays: 1, background: 0 })
             }

@@ -50,14 +50,14 @@ impl Default for CostModel {
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (four frames on a board): one end of a hop (the ray in
     /// its compact wire form, the reply carrying the ray's ack, the reply's
-    /// ack alone every fourth reply) 1 658.5, and of a ray reply with its ack
-    /// alone every fourth time 671.0, which stands for every short message; a
-    /// ray end is charged the difference, 988 (the UART's bytes are the link
+    /// ack alone every fourth reply) 1 670.8, and of a ray reply with its ack
+    /// alone every fourth time 669.6, which stands for every short message; a
+    /// ray end is charged the difference, 1 001 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every fourth ray) 1 136.4. The rays are half primaries from the eye,
-    /// half reflections from inside the grid (40.5 bytes a frame). A node's end of a retirement
-    /// (the host's acks taken) 1 377.4 with one record, 2 181.6 with three:
-    /// 402 a further record.
+    /// every fourth ray) 1 142.0. The rays are half primaries from the eye,
+    /// half reflections from inside the grid with half their pixel's credit
+    /// (39.0 bytes a frame). A node's end of a retirement (the host's acks
+    /// taken) 1 376.7 with one record, 2 201.2 with three: 412 a further record.
     fn default() -> Self {
         Self {
             cube_step: 109,
@@ -65,11 +65,11 @@ impl Default for CostModel {
             trace: 278,
             shade: 6_941,
             create: 2_785,
-            ray_message: 988,
-            granted_ray: 1_136,
+            ray_message: 1_001,
+            granted_ray: 1_142,
             short_message: 671,
             retire_message: 1_377,
-            retire_record: 402,
+            retire_record: 412,
             pass: 0,
         }
     }

@@ -332,6 +332,29 @@ fn a_node_reports_bad_input_the_host_did_not_catch() {
     assert_eq!(e.a, node_fw::Field::Center as u32);
 }
 
+/// Deeper than `MAX_DEPTH` a pixel's credit could split to nothing and the
+/// frame end early: the node refuses the scene rather than start it.
+#[test]
+fn a_node_refuses_a_depth_beyond_the_limit() {
+    use link_proto::{ErrorCode, MAX_DEPTH, Message, SceneHeader};
+    use sim_board::{Board, SimConfig};
+    for (depth, refused) in [(MAX_DEPTH, false), (MAX_DEPTH + 1, true), (u8::MAX, true)] {
+        let mut board = Board::new(SimConfig::new([1, 1, 1]));
+        let header = SceneHeader { grid: [8; 3], ambient: [0; 3], background: [0; 3], max_depth: depth };
+        board.send(0, Message::SceneBegin(header));
+        let mut frame = host_tool::session::frame::FrameBuffer::new(1, 1, 1, 1, [0; 3]);
+        frame.finishing = true;
+        board.send(0, Message::Finish(link_proto::Finish { frame: 0 }));
+        Transport::run(&mut board, &mut frame).expect("the node answers");
+        let e = frame.errors.first();
+        assert_eq!(
+            e.map(|e| (e.code, e.a)),
+            refused.then_some((ErrorCode::OutOfRange, node_fw::Field::Depth as u32)),
+            "depth {depth}"
+        );
+    }
+}
+
 #[test]
 fn lossy_links_keep_the_image_bit_identical() {
     let s = scene(0.6, 3);

@@ -229,7 +229,7 @@ fn shadings(timer: &mut Timer, grid: &Grid, spheres: &[Sphere]) -> (u64, u64) {
 /// Rays as nodes pass them: every other one a primary ray from the eye
 /// (which the wire leaves out, as a node does), the rest reflections from
 /// a point in the primary's cube (as a real reflection starts on a sphere in
-/// the grid) with part of its weight and credit.
+/// the grid) with part of its weight and half its credit (as a hit splits it).
 fn wire_rays(primaries: &[RayMsg]) -> heapless::Vec<RayMsg, 64> {
     let mut out = heapless::Vec::new();
     for (k, ray) in primaries.iter().enumerate() {
@@ -240,7 +240,7 @@ fn wire_rays(primaries: &[RayMsg]) -> heapless::Vec<RayMsg, 64> {
                 origin: ray.cell.map(|c| (i32::from(c) << 16) + 12_345),
                 kind: RayKind::Reflected,
                 weight: [20_000, 15_000, 9_000],
-                credit: PIXEL_CREDIT / 3,
+                credit: PIXEL_CREDIT / 2,
                 depth: 1,
                 ..*ray
             }
@@ -365,7 +365,8 @@ fn retirements(timer: &mut Timer, rays: &[RayMsg], per: usize) -> (u64, u64) {
             let mut records = chunk.iter().map(|ray| Retire {
                 pixel: ray.pixel,
                 rgb: [ray.pixel * 7 % 9000, 1200, ray.pixel % 300],
-                credit: PIXEL_CREDIT / 3,
+                // Shares as hits split them: powers of two.
+                credit: PIXEL_CREDIT >> (1 + ray.pixel % 4),
                 spawned: (ray.pixel % 3) as u8,
                 rays: 1,
                 background: 0,

@@ -193,7 +193,7 @@ impl SceneFormat {
 }
 
 /// Largest reflection depth accepted (bounds ray classes and credit splits).
-pub const MAX_DEPTH: u8 = 8;
+pub const MAX_DEPTH: u8 = link_proto::MAX_DEPTH;
 /// Largest number of lights.
 pub const MAX_LIGHTS: usize = node_fw::node::MAX_LIGHTS;
 

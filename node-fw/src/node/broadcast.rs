@@ -2,10 +2,10 @@
 //! the spheres that touch its box, the lights), the start of a frame, and a
 //! new session's reset.
 
-use link_proto::{Assign, ErrorCode, LightMsg, RenderStart, SceneHeader, Site, SphereMsg};
+use link_proto::{Assign, ErrorCode, LightMsg, MAX_DEPTH, RenderStart, SceneHeader, Site, SphereMsg};
 
 use crate::cube_box::CubeBox;
-use crate::error::Error;
+use crate::error::{Error, Field};
 use crate::geometry::{Grid, Point};
 use crate::link::Port;
 use crate::load::{IntervalClock, LoadMeter};
@@ -54,6 +54,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
 
     /// A new scene: its header checked, whatever the last one left cleared.
     pub(super) fn begin_scene(&mut self, header: SceneHeader) {
+        // Deeper, a pixel's credit could split to nothing (see `credit`).
+        if header.max_depth > MAX_DEPTH {
+            return self.fail_with(Error::OutOfRange(Field::Depth));
+        }
         match Grid::new(header.grid) {
             Ok(grid) => {
                 self.header = header;

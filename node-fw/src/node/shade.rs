@@ -1,9 +1,10 @@
 //! Shading a hit: the ambient term at once, the children (shadow rays,
 //! reflection) spawned as the pool admits them, the parent retired with its
-//! own share of the credit.
+//! own share of the credit ([`crate::credit`]).
 
-use link_proto::{ErrorCode, RayMsg, Site};
+use link_proto::{ErrorCode, RayKind, RayMsg, Site};
 
+use crate::credit::Split;
 use crate::geometry::Line;
 use crate::limits::Scalar;
 use crate::pool::Stage;
@@ -23,25 +24,33 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// Evaluates the children of a hit into `spawned` (each with its candidate
     /// number), counts them to split the credit, and folds the ambient term
     /// and any child resolved at once into the parent's contribution.
-    pub(super) fn begin_shading(&self, ray: &RayMsg, line: &Line, spawned: &mut Children) -> Option<Stage> {
-        let (t, sphere) = self.hit_sphere(ray)?;
+    pub(super) fn begin_shading(
+        &self,
+        ray: &RayMsg,
+        line: &Line,
+        spawned: &mut Children,
+    ) -> Result<Stage, Site> {
+        let unshadable = Site::HitNotShadable;
+        let (t, sphere) = self.hit_sphere(ray).ok_or(unshadable)?;
         let sphere = &sphere;
-        let surface = Surface::at(line, t, sphere)?;
+        let surface = Surface::at(line, t, sphere).ok_or(unshadable)?;
         let scene = self.scene();
         let mut rgb = scene.ambient(ray, sphere);
         for k in 0..scene.candidates() {
             match scene.child(ray, line, &surface, sphere, k) {
-                Some(Child::Ray(child)) => spawned.push((k, child)).ok()?,
+                Some(Child::Ray(child)) => spawned.push((k, child)).map_err(|_| unshadable)?,
                 Some(Child::Done(c)) => rgb = add3(rgb, c),
                 None => {}
             }
         }
         let children = spawned.len() as u8;
         if children == 0 {
-            return Some(Stage::Retire(retire(ray, rgb, ray.credit, 0)));
+            return Ok(Stage::Retire(retire(ray, rgb, ray.credit, 0)));
         }
-        let share = ray.credit / (u64::from(children) + 1);
-        Some(Stage::Shade { next: 0, children, share, rgb })
+        let reflected = spawned.iter().any(|(_, c)| c.kind == RayKind::Reflected);
+        let shadows = children - u8::from(reflected);
+        let split = Split::of(ray.credit, shadows, reflected).ok_or(Site::CreditTooSmall)?;
+        Ok(Stage::Shade { next: 0, children, split, rgb })
     }
 
     /// Admits the children `begin_shading` evaluated while the pool has room,
@@ -51,30 +60,29 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         &mut self,
         i: u16,
         ray: &RayMsg,
-        hit: (u8, u64, [u32; 3]),
+        hit: (u8, Split, [u32; 3]),
         spawned: &Children,
     ) {
-        let (children, share, rgb) = hit;
+        let (children, split, rgb) = hit;
         let mut next = self.scene().candidates();
         for &(k, mut child) in spawned {
-            child.credit = share;
+            child.credit = split.child(child.kind == RayKind::Reflected);
             if self.pool.admit(child, Stage::Trace).is_err() {
                 next = k;
                 break;
             }
         }
-        self.shaded_up_to(i, ray, Stage::Shade { next, children, share, rgb });
+        self.shaded_up_to(i, ray, Stage::Shade { next, children, split, rgb });
     }
 
     /// Records how far a hit's children are spawned: the parent retires with
     /// its own share once all are out.
     fn shaded_up_to(&mut self, i: u16, ray: &RayMsg, progress: Stage) {
-        let Stage::Shade { next, children, share, rgb } = progress else { return };
+        let Stage::Shade { next, children, split, rgb } = progress else { return };
         let stage = if next < self.scene().candidates() {
             progress
         } else {
-            let own = ray.credit - u64::from(children) * share;
-            Stage::Retire(retire(ray, rgb, own, children))
+            Stage::Retire(retire(ray, rgb, split.own(ray.credit, children), children))
         };
         self.pool.set_stage(i, stage);
     }
@@ -83,7 +91,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// admits them; retires the parent once all are out.
     pub(super) fn shade(&mut self, i: u16, work: &mut Work) {
         let Some(slot) = self.pool.get(i).copied() else { return };
-        let Stage::Shade { mut next, children, share, rgb } = slot.stage() else { return };
+        let Stage::Shade { mut next, children, split, rgb } = slot.stage() else { return };
         let ray = slot.ray;
         let Ok(line) = Self::line_of(&ray) else {
             return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::ShadeWithoutLine);
@@ -98,14 +106,14 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         let candidates = self.scene().candidates();
         while next < candidates {
             if let Some(Child::Ray(mut child)) = self.scene().child(&ray, &line, &surface, &sphere, next) {
-                child.credit = share;
+                child.credit = split.child(child.kind == RayKind::Reflected);
                 if self.pool.admit(child, Stage::Trace).is_err() {
                     break;
                 }
             }
             next += 1;
         }
-        self.shaded_up_to(i, &ray, Stage::Shade { next, children, share, rgb });
+        self.shaded_up_to(i, &ray, Stage::Shade { next, children, split, rgb });
     }
 }
 

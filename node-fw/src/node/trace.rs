@@ -100,15 +100,15 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             Outcome::Hit(_) => {
                 work.shades += 1;
                 match self.begin_shading(&ray, &line, &mut spawned) {
-                    Some(stage) => stage,
-                    None => return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::HitNotShadable),
+                    Ok(stage) => stage,
+                    Err(site) => return self.fail_at(ErrorCode::BadRay, ray.pixel, site),
                 }
             }
         };
         self.pool.set_ray(i, ray);
         self.pool.set_stage(i, stage);
-        if let Stage::Shade { children, share, rgb, .. } = stage {
-            self.spawn_evaluated(i, &ray, (children, share, rgb), &spawned);
+        if let Stage::Shade { children, split, rgb, .. } = stage {
+            self.spawn_evaluated(i, &ray, (children, split, rgb), &spawned);
         }
     }
 }
