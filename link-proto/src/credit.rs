@@ -10,6 +10,9 @@
 //! each went to a ray's credit and a record's: about a fifth of what the
 //! busiest host links carried (1000 spheres, 4x4x4, 921 600 baud).
 
+use crate::pack::{Reader, Writer};
+use crate::ray_wire::PIXEL_CREDIT;
+
 /// The exponent's bits.
 const EXPONENT_MASK: u8 = 0x3f;
 /// Where the odd multiplier's index starts.
@@ -31,6 +34,67 @@ pub fn from_byte(b: u8) -> Option<u64> {
     let m = 2 * u64::from(b >> MULTIPLIER_SHIFT) + 1;
     let credit = m.checked_shl(e)?;
     (credit >> e == m).then_some(credit)
+}
+
+/// The shortest form of a credit on the wire, in a ray or a record: what
+/// the two bits of its flags say (the code), and the bytes that follow.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Form {
+    /// A primary ray's whole credit ([`PIXEL_CREDIT`]): no bytes.
+    Pixel,
+    /// Any other under 2^32 without a byte of its own: four bytes.
+    Short,
+    /// Any other: eight.
+    Long,
+    /// A share as a hit splits them, its byte ([`to_byte`]).
+    Scaled(u8),
+}
+
+impl Form {
+    /// The form the encoder chooses for `credit`.
+    pub(crate) fn of(credit: u64) -> Self {
+        if credit == PIXEL_CREDIT {
+            return Self::Pixel;
+        }
+        match to_byte(credit) {
+            Some(b) => Self::Scaled(b),
+            None if credit <= u64::from(u32::MAX) => Self::Short,
+            None => Self::Long,
+        }
+    }
+
+    /// The form's two-bit code.
+    pub(crate) fn code(self) -> u8 {
+        match self {
+            Self::Pixel => 0,
+            Self::Short => 1,
+            Self::Long => 2,
+            Self::Scaled(_) => 3,
+        }
+    }
+
+    /// Writes the bytes of `credit` in this form (its own form, [`Form::of`]).
+    pub(crate) fn write(self, credit: u64, w: &mut Writer<'_>) -> Option<()> {
+        match self {
+            Self::Pixel => Some(()),
+            Self::Short => w.put(&(credit as u32).to_le_bytes()),
+            Self::Long => w.put(&credit.to_le_bytes()),
+            Self::Scaled(b) => w.put(&[b]),
+        }
+    }
+
+    /// Reads a credit written in the form `code` names; `None` for bytes
+    /// that are not the encoder's choice (each credit has one encoding).
+    pub(crate) fn read(code: u8, r: &mut Reader<'_>) -> Option<u64> {
+        let scaled = |c: u64| to_byte(c).is_some();
+        match code {
+            0 => Some(PIXEL_CREDIT),
+            1 => Some(u64::from(r.u32()?)).filter(|&c| !scaled(c)),
+            2 => Some(u64::from_le_bytes(r.take()?))
+                .filter(|&c| c > u64::from(u32::MAX) && c != PIXEL_CREDIT && !scaled(c)),
+            _ => from_byte(r.u8()?).filter(|&c| c != PIXEL_CREDIT),
+        }
+    }
 }
 
 #[cfg(test)]

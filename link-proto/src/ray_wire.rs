@@ -56,13 +56,9 @@ const WEIGHTS_MASK: u8 = 0b11;
 const WEIGHTS_FULL: u8 = 0;
 const WEIGHTS_SHORT: u8 = 1;
 const WEIGHTS_LONG: u8 = 2;
+/// The credit's form ([`credit::Form`]), its code in two bits.
 const CREDIT_SHIFT: u32 = 2;
 const CREDIT_MASK: u8 = 0b11 << CREDIT_SHIFT;
-const CREDIT_PRIMARY: u8 = 0;
-const CREDIT_SHORT: u8 = 1 << CREDIT_SHIFT;
-const CREDIT_LONG: u8 = 2 << CREDIT_SHIFT;
-/// A share a hit split off (a power of two): one byte ([`crate::credit`]).
-const CREDIT_SCALED: u8 = 3 << CREDIT_SHIFT;
 /// Cells two bytes each and the pixel four, for a cell or a pixel out of the short forms.
 const WIDE: u8 = 1 << 4;
 /// The origin in three bytes a component.
@@ -111,8 +107,8 @@ pub fn at_eye(origin: [i32; 3]) -> bool {
     origin.iter().all(|&c| c == i32::MIN)
 }
 
-/// The flag bytes the encoder chooses for `ray`.
-fn flags_of(ray: &RayMsg) -> [u8; 2] {
+/// The flag bytes the encoder chooses for `ray`, whose credit takes `credit`.
+fn flags_of(ray: &RayMsg, credit: credit::Form) -> [u8; 2] {
     let mut flags = kind_bits(ray.kind);
     for (set, bit) in [
         (ray.ignore.is_some(), HAS_IGNORE),
@@ -133,12 +129,7 @@ fn flags_of(ray: &RayMsg) -> [u8; 2] {
     } else {
         WEIGHTS_LONG
     };
-    let credit = match ray.credit {
-        PIXEL_CREDIT => CREDIT_PRIMARY,
-        c if credit::to_byte(c).is_some() => CREDIT_SCALED,
-        c if c <= u64::from(u32::MAX) => CREDIT_SHORT,
-        _ => CREDIT_LONG,
-    };
+    let credit = credit.code() << CREDIT_SHIFT;
     let wide = if ray.cell.iter().any(|&c| c > 0xff) || ray.pixel >= SHORT_LIMIT { WIDE } else { 0 };
     let origin = if short_origin(ray.origin) { SHORT_ORIGIN } else { 0 };
     [flags, weights | credit | wide | origin | (ray.depth.min(DEPTH_ESCAPE) << DEPTH_SHIFT)]
@@ -158,7 +149,8 @@ fn three_bytes(v: u32) -> [u8; 3] {
 /// Packs `ray` into `out`; the length written, or `None` if `out` is shorter
 /// than the ray needs ([`RAY_MAX_LEN`] always suffices).
 pub fn encode_ray(ray: &RayMsg, out: &mut [u8]) -> Option<usize> {
-    let [flags, forms] = flags_of(ray);
+    let credit = credit::Form::of(ray.credit);
+    let [flags, forms] = flags_of(ray, credit);
     let mut w = Writer::new(out);
     w.put(&[flags, forms])?;
     if ray.depth >= DEPTH_ESCAPE {
@@ -192,13 +184,7 @@ pub fn encode_ray(ray: &RayMsg, out: &mut [u8]) -> Option<usize> {
             _ => {}
         }
     }
-    let credit = ray.credit.to_le_bytes();
-    match forms & CREDIT_MASK {
-        CREDIT_SCALED => w.put(&[credit::to_byte(ray.credit)?])?,
-        CREDIT_SHORT => w.put(credit.get(..4)?)?,
-        CREDIT_LONG => w.put(&credit)?,
-        _ => {}
-    }
+    credit.write(ray.credit, &mut w)?;
     if flags & WIDE_CLASS != 0 {
         w.put(&ray.class.to_le_bytes())?;
     } else {
@@ -267,16 +253,7 @@ pub fn decode_ray(bytes: &[u8]) -> Option<RayMsg> {
         WEIGHTS_LONG => Some([r.u32()?, r.u32()?, r.u32()?]).filter(|w| w.iter().any(|&w| w > 0xffff))?,
         _ => return None,
     };
-    // Each credit has one form, the encoder's: the shortest that holds it.
-    let scaled = |c: u64| credit::to_byte(c).is_some();
-    let credit = match forms & CREDIT_MASK {
-        CREDIT_PRIMARY => PIXEL_CREDIT,
-        CREDIT_SCALED => credit::from_byte(r.u8()?).filter(|&c| c != PIXEL_CREDIT)?,
-        CREDIT_SHORT => Some(u64::from(r.u32()?)).filter(|&c| !scaled(c))?,
-        CREDIT_LONG => Some(u64::from_le_bytes(r.take()?))
-            .filter(|&c| c > u64::from(u32::MAX) && c != PIXEL_CREDIT && !scaled(c))?,
-        _ => return None,
-    };
+    let credit = credit::Form::read((forms & CREDIT_MASK) >> CREDIT_SHIFT, &mut r)?;
     let class = if flags & WIDE_CLASS != 0 { r.u16().filter(|&c| c > 0xff)? } else { u16::from(r.u8()?) };
     let tag = if flags & HAS_TAG != 0 { r.u16().filter(|&t| t != 0)? } else { 0 };
     let ignore = if flags & HAS_IGNORE != 0 { Some(r.u16()?) } else { None };
@@ -338,6 +315,12 @@ mod tests {
     use std::vec::Vec;
 
     use super::*;
+
+    // The credit forms as the layout documents them: the oracle's own codes.
+    const CREDIT_PRIMARY: u8 = 0;
+    const CREDIT_SHORT: u8 = 1 << CREDIT_SHIFT;
+    const CREDIT_LONG: u8 = 2 << CREDIT_SHIFT;
+    const CREDIT_SCALED: u8 = 3 << CREDIT_SHIFT;
 
     fn ray() -> RayMsg {
         RayMsg {

@@ -15,7 +15,6 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::credit;
 use crate::pack::{Reader, Writer};
-use crate::ray_wire::PIXEL_CREDIT;
 
 /// Rays of one pixel that ended. Contributions are integers, so their sum is
 /// independent of order and of how records are merged. It travels only
@@ -157,14 +156,9 @@ impl Eq for Retirements {}
 const RGB_ZERO: u8 = 1 << 0;
 /// One ray that spawned none: no count bytes.
 const ONE_RAY: u8 = 1 << 1;
+/// The credit's form ([`credit::Form`]), its code in two bits.
 const CREDIT_SHIFT: u32 = 2;
 const CREDIT_MASK: u8 = 0b11 << CREDIT_SHIFT;
-/// A primary ray's whole credit: no bytes.
-const CREDIT_PIXEL: u8 = 0;
-const CREDIT_SHORT: u8 = 1 << CREDIT_SHIFT;
-const CREDIT_LONG: u8 = 2 << CREDIT_SHIFT;
-/// A share a hit split off, or a small sum of them: one byte ([`credit`]).
-const CREDIT_SCALED: u8 = 3 << CREDIT_SHIFT;
 const BACKGROUND_SHIFT: u32 = 4;
 const BACKGROUND_MASK: u8 = 0b11 << BACKGROUND_SHIFT;
 /// No ray at full strength left the scene: no byte.
@@ -181,45 +175,12 @@ const RECORD_MAX_LEN: usize = 1 + 5 + 15 + 8 + 2 + 1;
 const WIRE_MAX_LEN: usize = Retirements::CAPACITY * RECORD_MAX_LEN;
 const _: () = assert!(WIRE_MAX_LEN < 128, "the byte string's length must stay one varint byte");
 
-/// The shortest form of a record's credit.
-#[derive(Clone, Copy)]
-enum CreditForm {
-    /// A primary ray's whole credit.
-    Pixel,
-    /// Its byte ([`credit`]).
-    Scaled(u8),
-    /// Four bytes.
-    Short,
-    /// Eight.
-    Long,
-}
-
-impl CreditForm {
-    fn of(c: u64) -> Self {
-        match (c, credit::to_byte(c)) {
-            (PIXEL_CREDIT, _) => Self::Pixel,
-            (_, Some(b)) => Self::Scaled(b),
-            (c, None) if c <= u64::from(u32::MAX) => Self::Short,
-            _ => Self::Long,
-        }
-    }
-
-    fn flag(self) -> u8 {
-        match self {
-            Self::Pixel => CREDIT_PIXEL,
-            Self::Scaled(_) => CREDIT_SCALED,
-            Self::Short => CREDIT_SHORT,
-            Self::Long => CREDIT_LONG,
-        }
-    }
-}
-
 fn flags_of(r: &Retire) -> u8 {
-    flags_with(r, CreditForm::of(r.credit))
+    flags_with(r, credit::Form::of(r.credit))
 }
 
-fn flags_with(r: &Retire, credit: CreditForm) -> u8 {
-    let mut flags = credit.flag();
+fn flags_with(r: &Retire, credit: credit::Form) -> u8 {
+    let mut flags = credit.code() << CREDIT_SHIFT;
     if r.rgb == [0; 3] {
         flags |= RGB_ZERO;
     }
@@ -236,7 +197,7 @@ fn flags_with(r: &Retire, credit: CreditForm) -> u8 {
 
 /// Packs `r` after what `w` holds.
 fn encode_record(r: &Retire, w: &mut Writer<'_>) -> Option<()> {
-    let form = CreditForm::of(r.credit);
+    let form = credit::Form::of(r.credit);
     let flags = flags_with(r, form);
     w.put(&[flags])?;
     w.varint(r.pixel)?;
@@ -245,12 +206,7 @@ fn encode_record(r: &Retire, w: &mut Writer<'_>) -> Option<()> {
             w.varint(c)?;
         }
     }
-    match form {
-        CreditForm::Pixel => {}
-        CreditForm::Scaled(b) => w.put(&[b])?,
-        CreditForm::Short => w.put(&(r.credit as u32).to_le_bytes())?,
-        CreditForm::Long => w.put(&r.credit.to_le_bytes())?,
-    }
+    form.write(r.credit, w)?;
     if flags & ONE_RAY == 0 {
         w.put(&[r.spawned, r.rays])?;
     }
@@ -268,13 +224,7 @@ fn decode_record(r: &mut Reader<'_>) -> Option<Retire> {
     }
     let pixel = r.varint()?;
     let rgb = if flags & RGB_ZERO != 0 { [0; 3] } else { [r.varint()?, r.varint()?, r.varint()?] };
-    let credit = match flags & CREDIT_MASK {
-        CREDIT_PIXEL => PIXEL_CREDIT,
-        CREDIT_SCALED => credit::from_byte(r.u8()?)?,
-        CREDIT_SHORT => u64::from(r.u32()?),
-        CREDIT_LONG => u64::from_le_bytes(r.take()?),
-        _ => return None,
-    };
+    let credit = credit::Form::read((flags & CREDIT_MASK) >> CREDIT_SHIFT, r)?;
     let (spawned, rays) = if flags & ONE_RAY != 0 { (0, 1) } else { (r.u8()?, r.u8()?) };
     let background = match flags & BACKGROUND_MASK {
         BACKGROUND_NONE => 0,
@@ -335,6 +285,13 @@ mod tests {
     extern crate std;
 
     use super::*;
+
+    use crate::ray_wire::PIXEL_CREDIT;
+
+    // The credit forms as the layout documents them.
+    const CREDIT_SHORT: u8 = 1 << CREDIT_SHIFT;
+    const CREDIT_LONG: u8 = 2 << CREDIT_SHIFT;
+    const CREDIT_SCALED: u8 = 3 << CREDIT_SHIFT;
 
     fn r(pixel: u32, c: u32) -> Retire {
         Retire { pixel, rgb: [c, 2 * c, 3], credit: u64::from(c) << 20, spawned: 1, rays: 1, background: 0 }

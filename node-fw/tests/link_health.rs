@@ -34,10 +34,10 @@ impl Bench {
         let mut neighbour = Channel::new(5);
         neighbour.set_incarnation(40);
         let mut bench = Self { node: TestNode::new(0), links, host, neighbour, now: 0 };
-        bench.host.send(Message::Hello(Hello::host())).unwrap();
+        assert_eq!(bench.host.send(Message::Hello(Hello::host())), Ok(()));
         bench.run(&mut |_| false);
         let hello = Hello { node: 1, capacity: TestNode::capacity(), session: SESSION, ..Hello::host() };
-        bench.neighbour.send(Message::Hello(hello)).unwrap();
+        assert_eq!(bench.neighbour.send(Message::Hello(hello)), Ok(()));
         bench.run(&mut |_| false);
         bench
     }
@@ -88,7 +88,7 @@ impl Bench {
 
     /// The host ends a frame; what the node says before its final load.
     fn finish(&mut self) -> Vec<LinkHealth> {
-        self.host.send(Message::Finish(Finish { frame: 0 })).unwrap();
+        assert_eq!(self.host.send(Message::Finish(Finish { frame: 0 })), Ok(()));
         let got = self.run(&mut |_| false);
         let load = got.iter().position(|m| matches!(m, Message::Load(_))).expect("a final load report");
         got[..load]
@@ -125,7 +125,7 @@ fn clean_links_send_no_report() {
 fn damaged_frames_are_told_once_before_the_final_load() {
     let mut bench = Bench::new();
     for _ in 0..4 {
-        bench.neighbour.send(Message::Space).unwrap();
+        assert_eq!(bench.neighbour.send(Message::Space), Ok(()));
     }
     // The first and third of the neighbour's frames in this run.
     bench.run(&mut |n| n == 0 || n == 2);
@@ -138,7 +138,7 @@ fn damaged_frames_are_told_once_before_the_final_load() {
 
     // Nothing new: no report. Then one more damaged frame: only that one.
     assert_eq!(bench.finish(), vec![]);
-    bench.neighbour.send(Message::Space).unwrap();
+    assert_eq!(bench.neighbour.send(Message::Space), Ok(()));
     bench.run(&mut |n| n == 0);
     let reports = bench.finish();
     assert_eq!(reports.len(), 1, "{reports:?}");
