@@ -99,6 +99,6 @@ check_cost reply "$(model short_message)"
 check_cost hop "$(($(model ray_message) + $(model short_message)))"
 check_cost hop_granted "$(model granted_ray)"
 check_cost retire "$(model retire_message)"
-# A retirement message with three records (link-proto's Retirements::CAPACITY).
-check_cost retire_batch "$(($(model retire_message) + 2 * $(model retire_record)))"
+# A retirement message with six records (the kernels' RETIRE_BATCH).
+check_cost retire_batch "$(($(model retire_message) + 5 * $(model retire_record)))"
 echo "cost model (sim-board/src/cost.rs) within 2% of every kernel"

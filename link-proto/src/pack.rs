@@ -37,6 +37,7 @@ impl<'a> Writer<'a> {
 }
 
 /// Reads fields one after another from a buffer.
+#[derive(Debug, Clone)]
 pub(crate) struct Reader<'a> {
     pub(crate) bytes: &'a [u8],
 }

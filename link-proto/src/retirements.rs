@@ -2,8 +2,9 @@
 //!
 //! A node's host link carries one record for every ray that ends, and on real
 //! boards (921 600 baud) that link bounds the frame. So records travel
-//! together when the link is behind: up to [`Retirements::CAPACITY`] to a
-//! message, and a pixel's rays that end together are summed into one record
+//! together when the link is behind: as many to a message as fit a ray's
+//! size packed (about ten), and a pixel's rays that end one after another
+//! are summed into one record
 //! (contributions are integers, so the host's sums do not change). A node
 //! holds a message with room only while it has work of its own (see
 //! `node_fw`'s `transmit`), so the last records of a frame never wait.
@@ -70,65 +71,118 @@ impl Retire {
     }
 }
 
-/// One to [`Retirements::CAPACITY`] records, in the order they were added.
+/// Records in the order they were added, at least one: the last unpacked,
+/// so that a pixel's next ray (most merges) is summed into it, and those
+/// before it packed in their wire form. A node moves every message whole,
+/// so a message is kept to a ray's size (a larger one made every message,
+/// rays too, dearer on a Cortex-M3): three records fitted it unpacked,
+/// about ten of the usual forms fit it packed, and at least three of any.
 #[derive(Debug, Clone, Copy)]
 pub struct Retirements {
-    records: [Retire; Retirements::CAPACITY],
+    /// The last record, open to the next ray of its pixel.
+    last: Retire,
+    /// The records before it, in their wire form.
+    packed: [u8; PACKED_MAX],
+    /// Bytes of `packed` in use.
+    packed_len: u8,
+    /// Records in all, the last included.
     len: u8,
 }
 
+/// Room for the packed records: with the last one, a message stays within
+/// a ray's size (a test holds it), and it holds two records of the longest
+/// form, so that any three fit.
+const PACKED_MAX: usize = 86;
+const _: () = assert!(PACKED_MAX >= 2 * RECORD_MAX_LEN && PACKED_MAX < 256);
+
 impl Retirements {
-    /// Records a message holds: as many as keep [`crate::Message`] no larger
-    /// than a ray makes it, since a node moves every message whole (four
-    /// made every message, rays too, about 2% dearer on a Cortex-M3).
-    pub const CAPACITY: usize = 3;
-
-    /// Records of one ray each, or summed per pixel.
+    /// One record, of one ray or summed over a pixel's.
     pub fn new(first: Retire) -> Self {
-        let mut records = [Retire::default(); Self::CAPACITY];
-        if let Some(slot) = records.first_mut() {
-            *slot = first;
-        }
-        Self { records, len: 1 }
+        Self { last: first, packed: [0; PACKED_MAX], packed_len: 0, len: 1 }
     }
 
-    /// The records.
-    pub fn records(&self) -> &[Retire] {
-        self.records.get(..usize::from(self.len)).unwrap_or_default()
+    /// How many records there are.
+    pub fn len(&self) -> usize {
+        usize::from(self.len)
     }
 
-    /// Whether no further record fits (one of a pixel already held may).
+    /// Never: a message holds at least one record (for clippy's sake).
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// The records, in the order they were added.
+    pub fn iter(&self) -> Records<'_> {
+        Records { packed: Reader { bytes: self.packed_bytes() }, last: Some(self.last) }
+    }
+
+    /// The packed records' bytes.
+    fn packed_bytes(&self) -> &[u8] {
+        self.packed.get(..usize::from(self.packed_len)).unwrap_or_default()
+    }
+
+    /// Whether a record of another pixel would be refused: the last one no
+    /// longer fits among the packed ones (a ray of its pixel may still merge).
     pub fn is_full(&self) -> bool {
-        usize::from(self.len) >= Self::CAPACITY
+        let mut scratch = [0u8; RECORD_MAX_LEN];
+        let mut w = Writer::new(&mut scratch);
+        encode_record(&self.last, &mut w).is_none_or(|()| usize::from(self.packed_len) + w.at > PACKED_MAX)
     }
 
-    /// Adds `r`: into the record of its pixel if there is one, else as a new
-    /// record. Hands it back when neither has room.
+    /// Adds `r`: into the last record if it is of the same pixel (and the
+    /// sums fit), else as a new record after it. Hands `r` back when there
+    /// is no room.
     #[allow(clippy::result_large_err)]
     pub fn push(&mut self, r: Retire) -> Result<(), Retire> {
-        let len = usize::from(self.len);
-        let r = match self.records.get_mut(..len).and_then(|rs| rs.iter_mut().find(|x| x.pixel == r.pixel)) {
-            Some(record) => match record.merge(r) {
-                Ok(()) => return Ok(()),
-                Err(r) => r,
-            },
-            None => r,
+        let r = match self.last.merge(r) {
+            Ok(()) => return Ok(()),
+            Err(r) => r,
         };
-        match self.records.get_mut(len) {
-            Some(slot) => {
-                *slot = r;
-                self.len += 1;
-                Ok(())
-            }
-            None => Err(r),
+        let at = usize::from(self.packed_len);
+        let Some(room) = self.packed.get_mut(at..) else { return Err(r) };
+        let mut w = Writer::new(room);
+        if encode_record(&self.last, &mut w).is_none() {
+            // A partial record past `packed_len` is not one: nothing changed.
+            return Err(r);
         }
+        // At most PACKED_MAX (< 256) bytes, and a record per two of them.
+        self.packed_len += w.at as u8;
+        self.len += 1;
+        self.last = r;
+        Ok(())
     }
 }
 
-/// Equal when they hold the same records (what lies beyond them is not theirs).
+/// The records of a [`Retirements`], in order.
+#[derive(Debug, Clone)]
+pub struct Records<'a> {
+    packed: Reader<'a>,
+    last: Option<Retire>,
+}
+
+impl Iterator for Records<'_> {
+    type Item = Retire;
+
+    fn next(&mut self) -> Option<Retire> {
+        if self.packed.bytes.is_empty() {
+            return self.last.take();
+        }
+        // Packed by `push` or checked by the decoder: every record reads
+        // back. Were one not to, the iterator would end, not panic.
+        let record = decode_record(&mut self.packed);
+        if record.is_none() {
+            self.packed.bytes = &[];
+            self.last = None;
+        }
+        record
+    }
+}
+
+/// Equal when they hold the same records: each record has one wire form,
+/// so the packed bytes are equal too (what lies beyond them is not theirs).
 impl PartialEq for Retirements {
     fn eq(&self, other: &Self) -> bool {
-        self.records() == other.records()
+        self.len == other.len && self.last == other.last && self.packed_bytes() == other.packed_bytes()
     }
 }
 
@@ -172,7 +226,7 @@ const KNOWN_FLAGS: u8 = RGB_ZERO | ONE_RAY | CREDIT_MASK | BACKGROUND_MASK;
 /// The longest record: flags, four five-byte varints, a long credit and the counts.
 const RECORD_MAX_LEN: usize = 1 + 5 + 15 + 8 + 2 + 1;
 /// The longest wire form of a message's records.
-const WIRE_MAX_LEN: usize = Retirements::CAPACITY * RECORD_MAX_LEN;
+const WIRE_MAX_LEN: usize = PACKED_MAX + RECORD_MAX_LEN;
 const _: () = assert!(WIRE_MAX_LEN < 128, "the byte string's length must stay one varint byte");
 
 fn flags_of(r: &Retire) -> u8 {
@@ -240,11 +294,12 @@ fn decode_record(r: &mut Reader<'_>) -> Option<Retire> {
 impl Serialize for Retirements {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         let mut buf = [0u8; WIRE_MAX_LEN];
-        let mut w = Writer::new(&mut buf);
-        for r in self.records() {
-            encode_record(r, &mut w).ok_or_else(|| S::Error::custom("records too long"))?;
-        }
-        let len = w.at;
+        let at = usize::from(self.packed_len);
+        let (packed, rest) = buf.split_at_mut(at.min(PACKED_MAX));
+        packed.copy_from_slice(self.packed.get(..at).unwrap_or_default());
+        let mut w = Writer::new(rest);
+        encode_record(&self.last, &mut w).ok_or_else(|| S::Error::custom("records too long"))?;
+        let len = at + w.at;
         serializer.serialize_bytes(buf.get(..len).unwrap_or_default())
     }
 }
@@ -255,19 +310,23 @@ impl<'de> Deserialize<'de> for Retirements {
         impl Visitor<'_> for Records {
             type Value = Retirements;
             fn expecting(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-                f.write_str("one to three retirement records")
+                f.write_str("retirement records")
             }
             fn visit_bytes<E: serde::de::Error>(self, bytes: &[u8]) -> Result<Retirements, E> {
+                let not_a_record = || E::custom("not a record");
                 let mut r = Reader { bytes };
-                let first = decode_record(&mut r).ok_or_else(|| E::custom("not a record"))?;
-                let mut all = Retirements::new(first);
+                let mut last = decode_record(&mut r).ok_or_else(not_a_record)?;
+                let (mut last_at, mut len) = (0usize, 1u8);
                 while !r.bytes.is_empty() {
-                    let record = decode_record(&mut r).ok_or_else(|| E::custom("not a record"))?;
-                    let len = usize::from(all.len);
-                    let slot = all.records.get_mut(len).ok_or_else(|| E::custom("too many records"))?;
-                    *slot = record;
-                    all.len += 1;
+                    last_at = bytes.len() - r.bytes.len();
+                    last = decode_record(&mut r).ok_or_else(not_a_record)?;
+                    len = len.checked_add(1).ok_or_else(|| E::custom("too many records"))?;
                 }
+                // The records before the last must fit where a node packs them.
+                let before = bytes.get(..last_at).filter(|b| b.len() <= PACKED_MAX);
+                let before = before.ok_or_else(|| E::custom("too many records"))?;
+                let mut all = Retirements { last, packed: [0; PACKED_MAX], packed_len: last_at as u8, len };
+                all.packed.get_mut(..last_at).ok_or_else(not_a_record)?.copy_from_slice(before);
                 Ok(all)
             }
         }
@@ -297,21 +356,64 @@ mod tests {
         Retire { pixel, rgb: [c, 2 * c, 3], credit: u64::from(c) << 20, spawned: 1, rays: 1, background: 0 }
     }
 
+    /// The records, as a list.
+    fn listed(all: &Retirements) -> std::vec::Vec<Retire> {
+        all.iter().collect()
+    }
+
     #[test]
-    fn a_pixel_s_rays_are_summed_and_others_take_records_until_full() {
+    fn a_pixel_s_next_ray_is_summed_and_others_take_records_until_full() {
         let mut all = Retirements::new(r(7, 10));
         assert_eq!(all.push(r(7, 5)), Ok(()));
-        assert_eq!(
-            all.records(),
-            &[Retire { pixel: 7, rgb: [15, 30, 6], credit: 15 << 20, spawned: 2, rays: 2, background: 0 }]
-        );
-        for p in [1, 2] {
-            assert_eq!(all.push(r(p, 1)), Ok(()));
+        let summed =
+            Retire { pixel: 7, rgb: [15, 30, 6], credit: 15 << 20, spawned: 2, rays: 2, background: 0 };
+        assert_eq!(listed(&all), [summed]);
+        assert_eq!(all.push(r(1, 1)), Ok(()));
+        assert_eq!(all.push(r(7, 1)), Ok(()), "a pixel not last takes a record of its own");
+        assert_eq!(listed(&all), [summed, r(1, 1), r(7, 1)]);
+        // A lit shadow ray's record in a 256x256 image: flags, three bytes
+        // of pixel, two of each colour, a byte of credit.
+        let lit = |pixel| Retire {
+            pixel,
+            rgb: [3000, 2000, 1000],
+            credit: PIXEL_CREDIT >> 3,
+            spawned: 0,
+            rays: 1,
+            background: 0,
+        };
+        let mut all = Retirements::new(lit(20_000));
+        let mut expected = listed(&all);
+        let mut pixel = 20_001;
+        while !all.is_full() {
+            assert_eq!(all.push(lit(pixel)), Ok(()));
+            expected.push(lit(pixel));
+            pixel += 1;
         }
-        assert!(all.is_full());
-        assert_eq!(all.push(r(9, 1)), Err(r(9, 1)), "a fourth pixel has no room");
-        assert_eq!(all.push(r(2, 4)), Ok(()), "a pixel held still merges");
-        assert_eq!(all.records().len(), 3);
+        assert_eq!(all.push(r(pixel, 1)), Err(r(pixel, 1)), "full: another pixel has no room");
+        assert_eq!(all.push(lit(pixel - 1)), Ok(()), "the last pixel still merges");
+        expected.last_mut().unwrap().merge(lit(pixel - 1)).unwrap();
+        assert_eq!(listed(&all), expected);
+        assert_eq!(all.len(), expected.len());
+        // Eleven bytes each: eight, where three fitted unpacked.
+        assert_eq!(all.len(), 8);
+    }
+
+    #[test]
+    fn any_three_records_fit_and_a_message_stays_within_a_ray_s_size() {
+        let longest = |p| Retire {
+            pixel: u32::MAX - p,
+            rgb: [u32::MAX; 3],
+            credit: u64::MAX,
+            spawned: 9,
+            rays: 9,
+            background: 9,
+        };
+        let mut all = Retirements::new(longest(0));
+        for p in [1, 2] {
+            assert_eq!(all.push(longest(p)), Ok(()));
+        }
+        assert_eq!(listed(&all), [longest(0), longest(1), longest(2)]);
+        assert!(core::mem::size_of::<Retirements>() <= core::mem::size_of::<crate::RayMsg>());
     }
 
     #[test]
@@ -340,15 +442,23 @@ mod tests {
     }
 
     #[test]
-    fn records_round_trip_and_more_than_three_are_refused() {
+    fn records_round_trip_and_more_than_a_node_packs_are_refused() {
         let mut all = Retirements::new(r(1, 1));
-        for p in [2, 3] {
+        for p in 2..=10 {
             all.push(r(p, p)).unwrap();
         }
         let mut buf = [0u8; Retirements::POSTCARD_MAX_SIZE];
         let bytes = postcard::to_slice(&all, &mut buf).unwrap();
         assert_eq!(postcard::from_bytes::<Retirements>(bytes), Ok(all));
-        assert!(postcard::from_bytes::<Retirements>(&wire(&[r(1, 1); 4])).is_err());
+        // Records before the last beyond what a node packs: 86 bytes.
+        let wide = Retire { rgb: [1 << 30; 3], ..r(0, 0) };
+        let records: std::vec::Vec<_> = (0..7).map(|p| Retire { pixel: 1 << 28 | p, ..wide }).collect();
+        assert_eq!(wire(&records[..1]).len() - 1, 27);
+        assert!(
+            postcard::from_bytes::<Retirements>(&wire(&records[..4])).is_ok(),
+            "81 bytes before the last"
+        );
+        assert!(postcard::from_bytes::<Retirements>(&wire(&records[..5])).is_err(), "108 before the last");
         assert!(postcard::from_bytes::<Retirements>(&[0]).is_err(), "no record");
     }
 
@@ -426,7 +536,8 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// Every field on both sides of its forms' limits, up to three records.
+        /// Every field on both sides of its forms' limits, records pushed
+        /// until one is refused: the list read back is what went in.
         #[test]
         fn records_round_trip_across_the_forms(
             records in proptest::collection::vec(
@@ -445,7 +556,7 @@ mod tests {
                     proptest::prop_oneof![proptest::strategy::Just((0u8, 1u8)), (0u8..4, 1u8..4), (proptest::num::u8::ANY, proptest::num::u8::ANY)],
                     proptest::prop_oneof![0u8..3, proptest::num::u8::ANY],
                 ),
-                1..=3,
+                1..=16,
             ),
         ) {
             let records: std::vec::Vec<Retire> = records
@@ -457,9 +568,20 @@ mod tests {
                 })
                 .collect();
             let mut all = Retirements::new(records[0]);
+            let mut taken = 1;
             for r in &records[1..] {
-                all.push(*r).unwrap();
+                let full = all.is_full();
+                match all.push(*r) {
+                    Ok(()) => taken += 1,
+                    Err(back) => {
+                        proptest::prop_assert!(full && taken >= 3);
+                        proptest::prop_assert_eq!(back, *r);
+                        break;
+                    }
+                }
+                proptest::prop_assert!(!full);
             }
+            proptest::prop_assert_eq!(listed(&all), &records[..taken]);
             let mut buf = [0u8; Retirements::POSTCARD_MAX_SIZE];
             let bytes = postcard::to_slice(&all, &mut buf).unwrap();
             proptest::prop_assert_eq!(postcard::from_bytes::<Retirements>(bytes), Ok(all));

@@ -57,7 +57,7 @@ impl Default for CostModel {
     /// every fourth ray) 1 142.0. The rays are half primaries from the eye,
     /// half reflections from inside the grid with half their pixel's credit
     /// (39.0 bytes a frame). A node's end of a retirement (the host's acks
-    /// taken) 1 376.7 with one record, 2 201.2 with three: 412 a further record.
+    /// taken) 1 394.1 with one record, 3 623.8 with six: 446 a further record.
     fn default() -> Self {
         Self {
             cube_step: 109,
@@ -68,8 +68,8 @@ impl Default for CostModel {
             ray_message: 1_001,
             granted_ray: 1_142,
             short_message: 671,
-            retire_message: 1_377,
-            retire_record: 412,
+            retire_message: 1_394,
+            retire_record: 446,
             pass: 0,
         }
     }

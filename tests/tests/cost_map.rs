@@ -45,8 +45,14 @@ fn the_cost_map_accounts_for_each_nodes_busy_time() {
     // reply per ray it was within 1.9%). It prices every retirement as a
     // message of its own, which is what a node pays when its rays end one at
     // a time; a busy node's retirements wait for company and share messages
-    // (three records to one), so it pays less. Before the pool shared its
-    // spare slots, refusals made forwarding nodes pay up to 26% more.
+    // (eight or so records to one), so it pays less. The map keeps the
+    // dearer price on purpose: on the boards' links it stands in for the
+    // host link's time, which the map does not price and which bounds those
+    // frames (priced as a record of a full message, the map came within
+    // -4.0..+3.6% per node here, but the f413 preview fits of two of the
+    // four scenes in docs/results.md' defaults table ran 8% and 16% slower).
+    // Before the pool shared its spare slots, refusals made forwarding nodes
+    // pay up to 26% more.
     for p in [even, staggered, jagged] {
         let r = render_partitioned(&s, &opts, p.clone()).unwrap();
         assert!(r.frame.sums == want.sums, "the partition changed the image");
@@ -60,18 +66,19 @@ fn the_cost_map_accounts_for_each_nodes_busy_time() {
             let fixed = direct::fixed_cost(p.spheres_sent(id, &s), p.neighbours(id), &s, &opts.sim.cost);
             let placed = (cost + fixed) as f64;
             // What a fit balances is the busiest node, so each node is held
-            // to the busiest's time. Measured: -0.4% to +8.0% of it with the
-            // re-measured kernels (cube 108; it was +7.4% with 114); the map
-            // prices every retirement as a message of its own, which busy
-            // nodes no longer pay.
+            // to the busiest's time. Measured: -0.3% to +9.2% of it (-0.4%
+            // to +8.0% when three records shared a message); the map prices
+            // every retirement as a message of its own, which busy nodes do
+            // not pay.
             assert!(
-                (busy - placed).abs() < 0.09 * busiest,
+                (busy - placed).abs() < 0.10 * busiest,
                 "node {id}: busy {busy:.4e}, the map says {placed:.4e} (busiest {busiest:.4e})"
             );
             (busy_sum, placed_sum) = (busy_sum + busy, placed_sum + placed);
         }
+        // Measured +3.7% to +4.2%, for the same reason.
         assert!(
-            (busy_sum - placed_sum).abs() < 0.04 * busy_sum,
+            (busy_sum - placed_sum).abs() < 0.05 * busy_sum,
             "busy {busy_sum:.4e}, the map says {placed_sum:.4e}"
         );
     }

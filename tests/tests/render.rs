@@ -449,10 +449,9 @@ fn link_presets_change_time_not_the_image() {
     assert_eq!((ideal_busy.compute, ideal_busy.setup), (irq_busy.compute, irq_busy.setup));
     // Which rays go on grants depends on timing, so the messages differ a
     // little between links; an interrupt a byte adds 50 cycles at each end
-    // of every byte, sent or taken in. And the f413 host link holds four
-    // frames, so retirements wait and travel together there: at most every
-    // retirement message of the ideal links is saved (a message of three
-    // records costs less than three).
+    // of every byte, sent or taken in. And the f413 host link holds eight
+    // frames, so retirements may wait longer and travel more together
+    // there: at most every retirement message of the ideal links is saved.
     let moved: u64 = irq.bytes.iter().chain(&irq.bytes_in).flatten().sum();
     let handling = irq_busy.messaging - 50 * moved;
     let cost = sim_board::CostModel::default();
@@ -464,7 +463,14 @@ fn link_presets_change_time_not_the_image() {
             "{name}: messaging {m} against {} on ideal links",
             ideal_busy.messaging
         );
-        assert!(m < ideal_busy.messaging, "{name}: retirements did not travel together ({m})");
+    }
+    // Records share messages on every link (a busy node's wait for company)
+    // and a pixel's rays that end one after another share a record:
+    // measured 3.2-3.3 records a message and 1.5 rays a record here.
+    for r in [&ideal, &dma, &irq] {
+        let tally = r.frame.retirements;
+        assert!(2 * tally.messages < tally.records, "{tally:?}");
+        assert!(tally.records < r.frame.rays_terminated, "{tally:?}");
     }
     // 3.125 Mbaud at 100 MHz is 13 times slower a byte than the ideal link.
     assert!(irq.frame.makespan > ideal.frame.makespan);

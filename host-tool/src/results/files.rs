@@ -190,6 +190,8 @@ pub fn summary_json<T: Clock>(
         // What the nodes told of their own link ends (on boards, the only
         // word of the links between them).
         "link_troubles": {"resent": troubles.resent, "damaged": troubles.damaged},
+        // Records share messages when the host link is behind or the node busy.
+        "retirements": {"messages": r.frame.retirements.messages, "records": r.frame.retirements.records},
         "wall_seconds": r.wall.as_secs_f64(),
         "nodes": nodes,
     });

@@ -59,6 +59,9 @@ pub struct FrameBuffer<T> {
     pub rays_created: u64,
     /// Rays retired.
     pub rays_terminated: u64,
+    /// Retirement messages taken, and the records they carried (a pixel's
+    /// rays that ended one after another at a node share a record).
+    pub retirements: RetireCounts,
     /// Arrival time of the last retirement.
     pub makespan: T,
     /// Final load report per node.
@@ -85,6 +88,15 @@ pub struct FrameBuffer<T> {
     pub link_health: Vec<[PortHealth; 7]>,
 }
 
+/// How the rays that ended came back to the host.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RetireCounts {
+    /// Retirement messages.
+    pub messages: u64,
+    /// Records in them.
+    pub records: u64,
+}
+
 impl<T: Clock> FrameBuffer<T> {
     /// An empty frame of `width` x `height` for `nodes` nodes, `credit` per
     /// pixel, of a scene whose background colour is `background` (Q1.15).
@@ -100,6 +112,7 @@ impl<T: Clock> FrameBuffer<T> {
             credit_back: 0,
             rays_created: pixels as u64,
             rays_terminated: 0,
+            retirements: RetireCounts::default(),
             makespan: T::default(),
             loads: vec![None; nodes],
             errors: Vec::new(),
@@ -156,7 +169,9 @@ impl<T: Clock> Endpoint<T> for FrameBuffer<T> {
     fn receive(&mut self, node: u16, at: T, msg: Message) {
         match msg {
             Message::Retire(batch) => {
-                for &r in batch.records() {
+                self.retirements.messages += 1;
+                self.retirements.records += batch.len() as u64;
+                for r in batch.iter() {
                     self.retire(at, r);
                 }
             }

@@ -31,6 +31,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.render = None;
         self.cursor = 0;
         self.pool.clear();
+        self.retiring = None;
         for n in &mut self.ports {
             n.forget_rays();
             n.present = false;
@@ -68,6 +69,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 self.spheres_seen = 0;
                 self.render = None;
                 self.pool.clear();
+                self.retiring = None;
                 for n in &mut self.ports {
                     (n.grants_held, n.grants_given, n.grants_due) = (0, 0, 0);
                 }

@@ -33,7 +33,7 @@ use link_proto::board::version_part;
 use link_proto::{
     Assign, Balance, BoardId, BoardInfo, BoardKind, Capacity, ClockSource, ErrorCode, ErrorReport,
     FirmwareVersion, Found, Hello, LightMsg, Message, PROTOCOL_VERSION, PortHealth, RayMsg, RenderStart,
-    Retire, SceneHeader, Site,
+    Retire, Retirements, SceneHeader, Site,
 };
 
 use crate::error::Error;
@@ -180,6 +180,9 @@ pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> 
     frames_ended: u32,
     /// Each port's counts ([`Links::health`]) when the host last heard them.
     health_told: [PortHealth; 7],
+    /// Records of rays that ended, gathered for the host (their slots are
+    /// free already); sent when full, or once the node has no work.
+    retiring: Option<Retirements>,
 }
 
 /// Interval of the final load report sent after `Finish`.
@@ -237,6 +240,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             control: Deque::new(),
             frames_ended: 0,
             health_told: [PortHealth { resent: 0, damaged: 0 }; 7],
+            retiring: None,
         }
     }
 
@@ -302,6 +306,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// created, replies, notices or reports. An idle node only waits for input.
     pub fn pending(&self) -> bool {
         !self.pool.is_empty()
+            || self.retiring.is_some()
             || self.creation_left()
             || self.hello_due
             || self.error_due.is_some()

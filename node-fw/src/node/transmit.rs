@@ -2,7 +2,7 @@
 //! slabs, as far as the links take them this poll.
 
 use link_proto::{
-    ErrorCode, Finish, LinkHealth, LoadReport, Message, PeerNote, PortHealth, Retire, Retirements, Site,
+    ErrorCode, Finish, LinkHealth, LoadReport, Message, PeerNote, PortHealth, Retirements, Site,
 };
 
 use crate::link::{Links, Port};
@@ -31,7 +31,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             let ray = msg.is_ray();
             let granted = matches!(msg, Message::GrantedRay(_));
             let records = match &msg {
-                Message::Retire(b) => Some(b.records().len() as u32),
+                Message::Retire(b) => Some(b.len() as u32),
                 _ => None,
             };
             let ok = links.try_send(port, msg).is_ok();
@@ -141,7 +141,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// Whether nothing of the frame is still under way: no slide, and no
     /// note or reply still to go ahead of the final load report.
     fn settled(&self) -> bool {
-        self.control.is_empty() && !self.slide.busy(Side::Lo) && !self.slide.busy(Side::Hi)
+        self.control.is_empty()
+            && self.retiring.is_none()
+            && !self.slide.busy(Side::Lo)
+            && !self.slide.busy(Side::Hi)
     }
 
     /// Says hello on every cabled neighbour port once a session, and tells
@@ -166,21 +169,12 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
     }
 
-    /// Sends `batch` to the host and frees its rays' slots; whether it went.
-    fn send_retirements<L: Links>(
-        &mut self,
-        links: &mut L,
-        send: &mut impl FnMut(&mut L, Port, Message) -> bool,
-        batch: &RetireBatch,
-    ) -> bool {
-        if !send(links, Port::Host, Message::Retire(batch.records)) {
-            return false;
-        }
-        for &i in &batch.slots {
-            self.pool.remove(i);
-        }
+    /// The ray in `slot` ended and its record joined the retirements on
+    /// their way to the host, which hold all the host needs of it: the slot
+    /// is free.
+    fn retired(&mut self, slot: u16) {
+        self.pool.remove(slot);
         self.slot_freed();
-        true
     }
 
     /// Sends rays bound for neighbours and retirements for the host, oldest
@@ -191,7 +185,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         send: &mut impl FnMut(&mut L, Port, Message) -> bool,
         computed: bool,
     ) {
-        if !self.pool.any_leaving() {
+        if !self.pool.any_leaving() && self.retiring.is_none() {
             return;
         }
         // Ports that refused a message in this pass stay full for the rest of
@@ -210,9 +204,10 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         // Oldest first. A ray that goes drops out of the list and the next
         // takes its place, so `n` moves on only past a ray that stays.
         let mut n = 0;
-        // Retirements gathered for the host, sent when full and at the end
-        // of the pass: whatever is ready goes, nothing waits for company.
-        let mut batch: Option<RetireBatch> = None;
+        // Retirements gathered for the host, kept from pass to pass until
+        // they go (packing a record costs instructions: gathered afresh each
+        // pass, a message of k records cost k(k+1)/2 packings).
+        let mut batch = self.retiring.take();
         while let Some(i) = self.pool.leaving_at(n) {
             n += 1;
             // Whether the port can take it, before the ray is copied out.
@@ -234,23 +229,28 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             match stage {
                 Stage::Retire(r) => {
                     // Joins the records on their way to the host; a full batch
-                    // goes first, and this ray starts the next.
-                    if let Some(b) = batch.as_mut()
-                        && b.add(i, r)
-                    {
-                        continue;
-                    }
-                    if let Some(full_batch) = batch.take() {
-                        if !self.send_retirements(links, send, &full_batch) {
-                            batch = Some(full_batch);
-                            if close(port_full, &mut open) {
-                                break;
-                            }
+                    // goes first, and this ray starts the next. While the
+                    // full one cannot go, the ray keeps its slot: back-pressure.
+                    let r = match batch.as_mut().map(|b| b.push(r)) {
+                        Some(Ok(())) => {
+                            self.retired(i);
+                            n -= 1;
                             continue;
                         }
-                        n -= full_batch.slots.len();
+                        Some(Err(r)) => r,
+                        None => r,
+                    };
+                    if let Some(full_batch) = batch
+                        && !send(links, Port::Host, Message::Retire(full_batch))
+                    {
+                        if close(port_full, &mut open) {
+                            break;
+                        }
+                        continue;
                     }
-                    batch = Some(RetireBatch::new(i, r));
+                    batch = Some(Retirements::new(r));
+                    self.retired(i);
+                    n -= 1;
                 }
                 Stage::Outbound(port) if granted => {
                     let Some(mut ray) = self.pool.get(i).map(|s| self.for_the_wire(s.ray)) else { continue };
@@ -292,37 +292,14 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
         // A batch with room waits for company while this poll's work went
         // on (the next poll adds to it); it goes once the node has no work it
-        // can do, so the last retirements of a frame never wait, and no slot
-        // stays held while the node needs room to go on.
-        if let Some(b) = batch
-            && !full.get(Port::Host.index()).is_some_and(|&f| f)
-            && (b.records.is_full() || !computed)
-        {
-            self.send_retirements(links, send, &b);
+        // can do, so the last retirements of a frame never wait.
+        let host_full = full.get(Port::Host.index()).is_some_and(|&f| f);
+        if let Some(b) = batch {
+            let due = b.is_full() || !computed;
+            // A message that does not go is kept whole (the send took a copy).
+            if host_full || !due || !send(links, Port::Host, Message::Retire(b)) {
+                self.retiring = Some(b);
+            }
         }
-    }
-}
-
-/// Retirements on their way to the host, and the pool slots of their rays.
-struct RetireBatch {
-    records: Retirements,
-    /// Slots freed once the records are sent.
-    slots: heapless::Vec<u16, RETIRE_BATCH_RAYS>,
-}
-
-/// Rays one batch of retirements may stand for (a pixel's rays merge, so
-/// more than its records).
-const RETIRE_BATCH_RAYS: usize = 16;
-
-impl RetireBatch {
-    fn new(slot: u16, r: Retire) -> Self {
-        let mut slots = heapless::Vec::new();
-        let _ = slots.push(slot);
-        Self { records: Retirements::new(r), slots }
-    }
-
-    /// Adds the ray in `slot` that ended with `r`; false when there is no room.
-    fn add(&mut self, slot: u16, r: Retire) -> bool {
-        !self.slots.is_full() && self.records.push(r).is_ok() && self.slots.push(slot).is_ok()
     }
 }
