@@ -17,6 +17,17 @@ pub mod stm32f413;
 #[cfg(all(any(feature = "stm32f413", feature = "netduinoplus2"), not(feature = "mps2-an385")))]
 pub use stm32f413 as active;
 
+/// What the firmware needs of a board's UART besides moving bytes.
+pub trait LostBytes {
+    /// Received bytes lost since the last call: an overrun in the
+    /// peripheral (the board read too late) or a full receive ring. A byte a
+    /// bad cable damages still arrives; these never did. Counted since the
+    /// last call, not in all, so that a UART that comes to serve another
+    /// port (the wires are mapped once a node knows its place) brings none
+    /// of its past to it.
+    fn take_lost(&mut self) -> u32;
+}
+
 /// The board's parts the node firmware uses: its UARTs `U` (the host's and
 /// `N` neighbours'), its clock `C`, what it is, and its lights on pins `L`.
 pub struct Parts<U, C, L, const N: usize> {

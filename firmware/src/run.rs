@@ -8,6 +8,7 @@ use node_fw::Links;
 use node_fw::Port;
 use node_fw::wiring::index_of;
 
+use crate::board::LostBytes;
 use crate::capacity::{BoardLinks, BoardNode};
 use crate::clock::Clock;
 use crate::lights::{Activity, Lights};
@@ -50,7 +51,7 @@ pub fn run<U, W, F, const N: usize>(
     idle: Idle,
 ) -> !
 where
-    U: Read + Write + ReadReady + WriteReady,
+    U: Read + Write + ReadReady + WriteReady + LostBytes,
     W: OutputPin,
     F: OutputPin,
 {
@@ -111,7 +112,7 @@ pub fn step<U, const N: usize>(
     now: u64,
 ) -> bool
 where
-    U: Read + Write + ReadReady + WriteReady,
+    U: Read + Write + ReadReady + WriteReady + LostBytes,
 {
     let read = wires.receive(links);
     let work = node.poll(now, links);

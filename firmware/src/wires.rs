@@ -11,6 +11,7 @@ use node_fw::Port;
 use node_fw::framed::FramedLinks;
 use node_fw::wiring::uart_ports;
 
+use crate::board::LostBytes;
 use crate::tx_ring::TxRing;
 
 /// Bytes read from one UART per pass, so one busy port cannot starve the rest.
@@ -26,7 +27,7 @@ pub struct Wires<U, const N: usize> {
     tx: [TxRing; 7],
 }
 
-impl<U: Read + Write + ReadReady + WriteReady, const N: usize> Wires<U, N> {
+impl<U: Read + Write + ReadReady + WriteReady + LostBytes, const N: usize> Wires<U, N> {
     /// A board with a UART for every neighbour port serves them all from
     /// the start, so that it learns who is at the end of each cable before it
     /// knows its place; with fewer, the UARTs wait for the place.
@@ -97,7 +98,7 @@ impl<U: Read + Write + ReadReady + WriteReady, const N: usize> Wires<U, N> {
     }
 }
 
-fn drain<U: Read + ReadReady, const W: usize, const Q: usize>(
+fn drain<U: Read + ReadReady + LostBytes, const W: usize, const Q: usize>(
     uart: &mut U,
     port: Port,
     links: &mut FramedLinks<W, Q>,
@@ -113,6 +114,8 @@ fn drain<U: Read + ReadReady, const W: usize, const Q: usize>(
         }
         read += 1;
     }
+    // The node tells the host of these with its links' other troubles.
+    links.note_lost(port, uart.take_lost());
     read
 }
 

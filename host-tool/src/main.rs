@@ -13,8 +13,8 @@ use host_tool::error::{HostError, input};
 use host_tool::plan::options::{Initial, Layout, RenderOptions};
 use host_tool::results::RenderResult;
 use host_tool::results::files::{
-    Provenance, boundary_history_csv, history_plot, imbalance, link_troubles, load_history_csv, loads_csv,
-    summary_json, worst_link,
+    Provenance, boundary_history_csv, history_plot, imbalance, link_warning, load_history_csv, loads_csv,
+    summary_json,
 };
 use host_tool::results::output::{
     check_png_name, check_writable, png, refuse_overwrite, write_all_atomic, write_atomic,
@@ -557,17 +557,8 @@ fn write_run<T: Clock>(
         result.wall.as_secs_f64(),
         files.image.display()
     );
-    if let Some((node, port, worst)) = worst_link(result) {
-        let all = link_troubles(result);
-        eprintln!(
-            "warning: the nodes resent {} frames and took {} damaged; the most on node {node} port {port} \
-             ({} resent, {} damaged): check that link's cable; per node and port in {}",
-            all.resent,
-            all.damaged,
-            worst.resent,
-            worst.damaged,
-            files.summary.display()
-        );
+    if let Some(warning) = link_warning(result, &files.summary) {
+        eprintln!("{warning}");
     }
     Ok(())
 }

@@ -1,5 +1,5 @@
-//! What a node tells the host of its links: the frames it sent again and the
-//! frames that reached it damaged, per port.
+//! What a node tells the host of its links: the frames it sent again, the
+//! frames that reached it damaged and the bytes its receivers lost, per port.
 //!
 //! On a real array a bad cable, a noisy line or a receiver that cannot keep
 //! up costs only time: the reliable channels resend until every frame gets
@@ -19,6 +19,11 @@ pub struct PortHealth {
     /// Frames that arrived damaged: a failed check or a frame that would not
     /// decode (line noise, a loose cable, bytes the receiver lost).
     pub damaged: u32,
+    /// Received bytes the board lost before it read them: its UART overran
+    /// (an interrupt held off too long, a loop too slow to poll) or its
+    /// receive ring was full. The board's fault, not the cable's; each one
+    /// also damages a frame.
+    pub lost: u32,
 }
 
 impl PortHealth {
@@ -33,6 +38,7 @@ impl PortHealth {
         Self {
             resent: self.resent.wrapping_sub(earlier.resent),
             damaged: self.damaged.wrapping_sub(earlier.damaged),
+            lost: self.lost.wrapping_sub(earlier.lost),
         }
     }
 }
@@ -41,6 +47,7 @@ impl core::ops::AddAssign for PortHealth {
     fn add_assign(&mut self, o: Self) {
         self.resent = self.resent.saturating_add(o.resent);
         self.damaged = self.damaged.saturating_add(o.damaged);
+        self.lost = self.lost.saturating_add(o.lost);
     }
 }
 
@@ -61,16 +68,16 @@ mod tests {
 
     #[test]
     fn since_takes_the_difference_across_a_wrap() {
-        let earlier = PortHealth { resent: u32::MAX - 1, damaged: 5 };
-        let later = PortHealth { resent: 3, damaged: 5 };
-        assert_eq!(later.since(earlier), PortHealth { resent: 5, damaged: 0 });
+        let earlier = PortHealth { resent: u32::MAX - 1, damaged: 5, lost: u32::MAX };
+        let later = PortHealth { resent: 3, damaged: 5, lost: 1 };
+        assert_eq!(later.since(earlier), PortHealth { resent: 5, damaged: 0, lost: 2 });
         assert!(later.since(later).is_clean());
     }
 
     #[test]
     fn sums_saturate() {
-        let mut a = PortHealth { resent: u32::MAX, damaged: 1 };
-        a += PortHealth { resent: 1, damaged: 2 };
-        assert_eq!(a, PortHealth { resent: u32::MAX, damaged: 3 });
+        let mut a = PortHealth { resent: u32::MAX, damaged: 1, lost: 4 };
+        a += PortHealth { resent: 1, damaged: 2, lost: u32::MAX };
+        assert_eq!(a, PortHealth { resent: u32::MAX, damaged: 3, lost: u32::MAX });
     }
 }

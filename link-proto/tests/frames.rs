@@ -190,10 +190,12 @@ fn arb_message() -> impl Strategy<Value = Message> {
             .prop_map(|(interval, boundary)| Message::SlideRequest(SlideOffer { interval, boundary })),
         (any::<u8>(), any::<[u32; 3]>())
             .prop_map(|(port, id)| Message::Peer(PeerNote { port, board: BoardId(id) })),
-        (any::<u16>(), any::<[(u32, u32); 7]>()).prop_map(|(node, counts)| Message::LinkHealth(LinkHealth {
-            node,
-            ports: counts.map(|(resent, damaged)| PortHealth { resent, damaged }),
-        })),
+        (any::<u16>(), any::<[(u32, u32, u32); 7]>()).prop_map(|(node, counts)| Message::LinkHealth(
+            LinkHealth {
+                node,
+                ports: counts.map(|(resent, damaged, lost)| PortHealth { resent, damaged, lost })
+            }
+        )),
     ]
 }
 

@@ -23,6 +23,8 @@ pub struct FramedLinks<const W: usize, const Q: usize> {
     /// Ports the owner knows no cable is plugged into (none, unless told):
     /// kept as the ports without one, so that a new value is all zeros.
     uncabled: [bool; 7],
+    /// Received bytes each port's byte link lost, as its owner told them.
+    lost: [u32; 7],
 }
 
 impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
@@ -48,6 +50,7 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
             inbox: [const { Deque::new() }; 7],
             scratch: [0; MAX_FRAME_LEN],
             uncabled: [false; 7],
+            lost: [0; 7],
         }
     }
 
@@ -69,6 +72,15 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
     pub fn set_incarnation(&mut self, incarnation: u32) {
         for channel in &mut self.channels {
             channel.set_incarnation(incarnation);
+        }
+    }
+
+    /// `n` more received bytes `port`'s byte link lost (a UART's overruns,
+    /// a full receive ring), as its owner counted them: the channel sees
+    /// only the frames they damaged.
+    pub fn note_lost(&mut self, port: Port, n: u32) {
+        if let Some(lost) = self.lost.get_mut(port.index()) {
+            *lost = lost.wrapping_add(n);
         }
     }
 
@@ -127,6 +139,7 @@ impl<const W: usize, const Q: usize> Links for FramedLinks<W, Q> {
         self.channels.get(port.index()).map_or_else(PortHealth::default, |c| PortHealth {
             resent: c.stats.retransmitted,
             damaged: c.stats.corrupted,
+            lost: self.lost.get(port.index()).copied().unwrap_or(0),
         })
     }
 

@@ -102,9 +102,9 @@ pub trait Links {
     fn cabled(&self, _port: Port) -> bool {
         true
     }
-    /// Frames resent on `port` and frames that reached it damaged, counted
-    /// since the links began. Links that lose nothing, such as in-memory
-    /// queues, count none.
+    /// Frames resent on `port`, frames that reached it damaged and received
+    /// bytes its byte link lost, counted since the links began. Links that
+    /// lose nothing, such as in-memory queues, count none.
     fn health(&self, _port: Port) -> PortHealth {
         PortHealth::default()
     }

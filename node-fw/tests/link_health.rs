@@ -1,5 +1,6 @@
-//! A node tells the host of the frames that reached it damaged, per port,
-//! before its final load report, and only what happened since it last told.
+//! A node tells the host of the frames that reached it damaged and the bytes
+//! its receivers lost, per port, before its final load report, and only what
+//! happened since it last told.
 //! The damage is made here, a byte flipped in chosen frames on the way in,
 //! so the counts the report must carry are known without asking the node.
 
@@ -150,4 +151,20 @@ fn damaged_frames_are_told_once_before_the_final_load() {
         e.resent = now - before;
     }
     assert_eq!(reports[0].ports, expected);
+}
+
+#[test]
+fn bytes_a_receiver_lost_are_told_as_counted_since_the_last_report() {
+    let mut bench = Bench::new();
+    // The board's UART driver counts 3 bytes lost on -y, then 2 more.
+    bench.links.note_lost(Port::NegY, 3);
+    let reports = bench.finish();
+    assert_eq!(reports.len(), 1, "{reports:?}");
+    let mut expected = [PortHealth::default(); 7];
+    expected[Port::NegY.index()].lost = 3;
+    assert_eq!(reports[0].ports, expected);
+    bench.links.note_lost(Port::NegY, 2);
+    expected[Port::NegY.index()].lost = 2;
+    assert_eq!(bench.finish().iter().map(|r| r.ports).collect::<Vec<_>>(), vec![expected]);
+    assert_eq!(bench.finish(), vec![], "nothing new");
 }

@@ -4,13 +4,14 @@
 use host_tool::compare::compare;
 use host_tool::plan::options::{Initial, Layout, RenderOptions};
 use host_tool::plan::{check_frame, initial_partition};
-use host_tool::results::files::link_troubles;
+use host_tool::results::files::{link_troubles, link_warning};
 use host_tool::results::image::{to_srgb8, to_srgb8_mean};
 use host_tool::scene::{Light, Scene, SphereDesc};
 use host_tool::session::clock::Cycles;
 use host_tool::session::sim::{render_partitioned, render_sim};
 use host_tool::session::transport::Transport;
 use host_tool::{plan::direct, reference};
+use node_fw::Port;
 
 /// A small scene with mirrors, two lights and spheres across node boundaries.
 /// The paper's sliding rule, one cube a step, at `interval` cycles and
@@ -385,6 +386,19 @@ fn lossy_links_keep_the_image_bit_identical() {
         assert!(told.damaged > 0 && told.damaged <= r.links.corrupted, "seed {seed}: {told:?} {:?}", r.links);
         let between_nodes = r.frame.link_health.iter().flat_map(|p| &p[..6]).any(|p| p.damaged > 0);
         assert!(between_nodes, "seed {seed}: no damage told on a neighbour port");
+        // The wires lost and damaged bytes (the in-memory board's receivers
+        // lose none): the advice is the cable's.
+        let summary = std::path::Path::new("summary.json");
+        let warning = link_warning(&r, summary).expect("a warning");
+        assert!(warning.contains("check that link's cable"), "{warning}");
+        // A board that lost bytes itself is told apart from a bad cable.
+        let mut r = r;
+        r.frame.link_health[5][Port::PosZ.index()].lost = 1_000_000;
+        let warning = link_warning(&r, summary).expect("a warning");
+        assert!(
+            warning.contains("node 5 port +z") && warning.contains("read its UART too late"),
+            "{warning}"
+        );
     }
     // Duplicates and delays (reordering) on top.
     let mut opts = RenderOptions::new([2, 2, 2]);

@@ -26,6 +26,9 @@ const CTRL: usize = 0x08;
 const BAUDDIV: usize = 0x10;
 const STATE_TX_FULL: u32 = 1 << 0;
 const STATE_RX_FULL: u32 = 1 << 1;
+/// A byte arrived while the last was unread, and was lost; write 1 to clear
+/// (ARM CMSDK TRM, DDI 0479, APB UART STATE).
+const STATE_RX_OVERRUN: u32 = 1 << 3;
 /// TX and RX enabled, RX interrupt (it only pends: see [`super::wake`]).
 const CTRL_TX_RX: u32 = 0b1011;
 const INTCLEAR: usize = 0x0C;
@@ -34,6 +37,10 @@ const INTCLEAR: usize = 0x0C;
 #[derive(Debug)]
 pub struct Uart {
     base: usize,
+    /// Receive overruns seen since they were last taken: at least a byte
+    /// lost each (QEMU holds bytes back until they are read, so its UARTs
+    /// never overrun).
+    overruns: u32,
 }
 
 impl Uart {
@@ -41,7 +48,7 @@ impl Uart {
     pub fn new(base: usize) -> Self {
         Reg::at(base, BAUDDIV).write(25_000_000 / BAUD);
         Reg::at(base, CTRL).write(CTRL_TX_RX);
-        Self { base }
+        Self { base, overruns: 0 }
     }
 
     #[inline]
@@ -57,7 +64,19 @@ impl ErrorType for Uart {
 impl ReadReady for Uart {
     #[inline]
     fn read_ready(&mut self) -> Result<bool, Infallible> {
-        Ok(self.state() & STATE_RX_FULL != 0)
+        let state = self.state();
+        if state & STATE_RX_OVERRUN != 0 {
+            self.overruns = self.overruns.wrapping_add(1);
+            Reg::at(self.base, STATE).write(STATE_RX_OVERRUN);
+        }
+        Ok(state & STATE_RX_FULL != 0)
+    }
+}
+
+impl super::LostBytes for Uart {
+    /// An overrun flag says a byte or more was lost: counted as one.
+    fn take_lost(&mut self) -> u32 {
+        core::mem::take(&mut self.overruns)
     }
 }
 

@@ -167,6 +167,9 @@ static RINGS: [Rings; 7] = [const { Rings { rx: ByteRing::new(), tx: ByteRing::n
 pub struct Uart {
     regs: Regs,
     rings: &'static Rings,
+    /// The receive ring's count of lost bytes when last taken (only its
+    /// interrupt writes the count, so the difference is taken here).
+    lost_taken: u32,
 }
 
 impl core::fmt::Debug for Rings {
@@ -185,7 +188,7 @@ impl Uart {
             r.brr().write(|w| w.div_mantissa().set(mantissa).div_fraction().set(fraction));
             r.cr1().write(|w| w.ue().set_bit().te().set_bit().re().set_bit().rxneie().set_bit());
         });
-        Self { regs, rings }
+        Self { regs, rings, lost_taken: 0 }
     }
 }
 
@@ -267,6 +270,13 @@ uart_interrupts! {
 
 impl ErrorType for Uart {
     type Error = Infallible;
+}
+
+impl super::LostBytes for Uart {
+    fn take_lost(&mut self) -> u32 {
+        let lost = self.rings.rx.lost();
+        lost.wrapping_sub(core::mem::replace(&mut self.lost_taken, lost))
+    }
 }
 
 impl ReadReady for Uart {

@@ -46,7 +46,9 @@ pub const PORT_NAMES: [&str; 7] = ["+x", "-x", "+y", "-y", "+z", "-z", "host"];
 /// The ports of one node whose links had trouble, with what went wrong.
 fn link_troubles_json(ports: &[PortHealth; 7]) -> serde_json::Value {
     let troubled = PORT_NAMES.iter().zip(ports).filter(|(_, p)| !p.is_clean());
-    let map = troubled.map(|(name, p)| (name.to_string(), json!({"resent": p.resent, "damaged": p.damaged})));
+    let map = troubled.map(|(name, p)| {
+        (name.to_string(), json!({"resent": p.resent, "damaged": p.damaged, "lost": p.lost}))
+    });
     serde_json::Value::Object(map.collect())
 }
 
@@ -59,15 +61,44 @@ pub fn link_troubles<T>(r: &RenderResult<T>) -> PortHealth {
     total
 }
 
-/// The node and port that resent and took damaged the most frames, if any did.
-pub fn worst_link<T>(r: &RenderResult<T>) -> Option<(usize, &'static str, PortHealth)> {
+/// The node and port that resent and took damaged the most frames and lost
+/// the most bytes, if any did.
+fn worst_link<T>(r: &RenderResult<T>) -> Option<(usize, &'static str, PortHealth)> {
     let ports = r
         .frame
         .link_health
         .iter()
         .enumerate()
         .flat_map(|(id, ports)| ports.iter().zip(PORT_NAMES).map(move |(p, name)| (id, name, *p)));
-    ports.filter(|(_, _, p)| !p.is_clean()).max_by_key(|(_, _, p)| u64::from(p.resent) + u64::from(p.damaged))
+    ports
+        .filter(|(_, _, p)| !p.is_clean())
+        .max_by_key(|(_, _, p)| u64::from(p.resent) + u64::from(p.damaged) + u64::from(p.lost))
+}
+
+/// The one-line warning `render` prints when the nodes told of link
+/// troubles, naming the worst port and what to do about it; `None` when the
+/// links were clean. `summary` is where the rest is.
+pub fn link_warning<T>(r: &RenderResult<T>, summary: &std::path::Path) -> Option<String> {
+    let (node, port, worst) = worst_link(r)?;
+    let all = link_troubles(r);
+    // A lost byte never reached the board's memory: the board read its
+    // UART too late, and a new cable would not help.
+    let advice = if worst.lost > 0 {
+        "that board read its UART too late (an interrupt held off or a loop too slow), not the cable"
+    } else {
+        "check that link's cable"
+    };
+    Some(format!(
+        "warning: the nodes resent {} frames, took {} damaged and lost {} received bytes; the most on node \
+         {node} port {port} ({} resent, {} damaged, {} lost): {advice}; per node and port in {}",
+        all.resent,
+        all.damaged,
+        all.lost,
+        worst.resent,
+        worst.damaged,
+        worst.lost,
+        summary.display()
+    ))
 }
 
 /// max / mean of the nodes' running time.
@@ -189,7 +220,7 @@ pub fn summary_json<T: Clock>(
         "discarded_frames": r.links.discarded,
         // What the nodes told of their own link ends (on boards, the only
         // word of the links between them).
-        "link_troubles": {"resent": troubles.resent, "damaged": troubles.damaged},
+        "link_troubles": {"resent": troubles.resent, "damaged": troubles.damaged, "lost": troubles.lost},
         // Records share messages when the host link is behind or the node busy.
         "retirements": {"messages": r.frame.retirements.messages, "records": r.frame.retirements.records},
         "wall_seconds": r.wall.as_secs_f64(),

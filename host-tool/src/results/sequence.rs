@@ -155,12 +155,12 @@ impl FrameSink for SequenceWriter {
 pub fn frames_csv(rows: &[FrameRow], unit: &str) -> String {
     let mut s = format!(
         "# makespan in {unit}: from the frame's start to its last retirement (frame 0's includes sending the scene)\n\
-         frame,makespan,imbalance,slides,messages,neighbour_bytes,host_bytes,rays,loaded,planning_ms,resent,damaged\n"
+         frame,makespan,imbalance,slides,messages,neighbour_bytes,host_bytes,rays,loaded,planning_ms,resent,damaged,lost\n"
     );
     for r in rows {
         let messages = r.messages.map_or(String::new(), |m| m.to_string());
         s += &format!(
-            "{},{},{:.4},{},{messages},{},{},{},{},{:.1},{},{}\n",
+            "{},{},{:.4},{},{messages},{},{},{},{},{:.1},{},{},{}\n",
             r.frame,
             r.makespan,
             r.imbalance,
@@ -171,7 +171,8 @@ pub fn frames_csv(rows: &[FrameRow], unit: &str) -> String {
             u8::from(r.loaded),
             r.planning_ms,
             r.link_troubles.resent,
-            r.link_troubles.damaged
+            r.link_troubles.damaged,
+            r.link_troubles.lost
         );
     }
     s

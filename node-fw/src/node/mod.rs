@@ -239,7 +239,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             slide: SlideState::new(),
             control: Deque::new(),
             frames_ended: 0,
-            health_told: [PortHealth { resent: 0, damaged: 0 }; 7],
+            health_told: [PortHealth { resent: 0, damaged: 0, lost: 0 }; 7],
             retiring: None,
         }
     }
