@@ -205,8 +205,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         // takes its place, so `n` moves on only past a ray that stays.
         let mut n = 0;
         // Retirements gathered for the host, kept from pass to pass until
-        // they go (packing a record costs instructions: gathered afresh each
-        // pass, a message of k records cost k(k+1)/2 packings).
+        // they go, so that each record is packed once, as it joins.
         let mut batch = self.retiring.take();
         while let Some(i) = self.pool.leaving_at(n) {
             n += 1;
