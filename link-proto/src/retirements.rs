@@ -1,7 +1,8 @@
 //! Rays that ended, several to a message: what a node tells the host.
 //!
-//! A node's host link carries one record for every ray that ends, and on real
-//! boards (921 600 baud) that link bounds the frame. So records travel
+//! A node's host link carries one record for every ray that ends: on real
+//! boards (921 600 baud) it is busy most of the frame, and every message and
+//! every byte costs the node's CPU (an interrupt a byte). So records travel
 //! together when the link is behind: as many to a message as fit a ray's
 //! size packed (about ten), and a pixel's rays that end one after another
 //! are summed into one record
@@ -189,8 +190,8 @@ impl PartialEq for Retirements {
 impl Eq for Retirements {}
 
 // The wire form of the records: hand-packed, one flag byte a record choosing
-// the shortest form of each field. On real boards the host link bounds the
-// frame, and a retirement is most of what it carries: postcard's form took
+// the shortest form of each field. A retirement is most of what a host link
+// carries, and on real boards each byte costs an interrupt: postcard's form took
 // 14.5 bytes a record (1000 spheres, 4x4x4, 921 600 baud), most of them a
 // primary ray's whole credit (a five-byte varint) and counts of one ray.
 //
