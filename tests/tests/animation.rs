@@ -7,7 +7,7 @@ use host_tool::plan::options::{Layout, PROPORTIONAL, RenderOptions};
 use host_tool::results::RenderResult;
 use host_tool::results::history::after_slides;
 use host_tool::scene::Scene;
-use host_tool::scene::path::CameraPath;
+use host_tool::scene::path::{CameraPath, SphereKeyframe};
 use host_tool::session::clock::Cycles;
 use host_tool::session::sequence::{self, FrameStart, Sequence, SequenceFrame};
 use host_tool::session::sim::render_sim;
@@ -120,6 +120,62 @@ fn frames_are_identical_under_link_faults() {
         assert!(b.iter().map(|f| f.result.links.retransmitted).sum::<u32>() > 0, "{array:?}: no fault bit");
         for (x, y) in a.iter().zip(&b) {
             assert_eq!(x.result.frame.sums, y.result.frame.sums, "{array:?}: frame {} differs", x.number);
+        }
+    }
+}
+
+/// A sphere that moves by keyframes: every frame equals a single-frame
+/// render of the scene with the sphere put where it belongs by hand, the
+/// scene is sent again in just the frames where it moved, and slid
+/// boundaries are still carried across those reloads.
+#[test]
+fn a_moving_sphere_is_sent_again_where_it_moved_and_every_frame_stays_identical() {
+    let mut s = scene();
+    let (from, to) = ([3.0, 4.0, 5.0], [11.0, 12.0, 9.0]);
+    s.spheres[5].center = from;
+    s.spheres[5].reflect = 0.5;
+    // Held at `from` to frame 1, half way at frame 2, at `to` from frame 3.
+    s.sphere_keyframes = vec![
+        SphereKeyframe { sphere: 5, frame: 1, center: from },
+        SphereKeyframe { sphere: 5, frame: 3, center: to },
+    ];
+    s.validate().unwrap();
+    let frames = 5;
+    let centres = [from, from, [7.0, 8.0, 7.0], to, to];
+    let references: Vec<_> = centres
+        .iter()
+        .map(|&c| {
+            let mut at = s.clone();
+            at.sphere_keyframes.clear();
+            at.spheres[5].center = c;
+            render_sim(&at, &options([1, 1, 1], None, Layout::Even)).unwrap()
+        })
+        .collect();
+    assert_ne!(references[0].frame.sums, references[4].frame.sums, "the move does not show");
+    let still = CameraPath::Keyframes;
+    let cases = [
+        ([2, 2, 2], sliding(PROPORTIONAL), Layout::Even, FrameStart::Carried),
+        ([3, 2, 1], sliding(SlidePolicy::Paper), Layout::Even, FrameStart::Carried),
+        ([2, 2, 2], None, Layout::Preview, FrameStart::Planned),
+    ];
+    for (array, balance, layout, start) in cases {
+        let out = run(&s, &options(array, balance, layout), &Sequence { frames, path: still, start });
+        for (f, reference) in out.iter().zip(&references) {
+            assert_eq!(
+                f.result.frame.sums, reference.frame.sums,
+                "{array:?} {start:?}: frame {} differs from its single-frame render",
+                f.number
+            );
+        }
+        let loaded: Vec<bool> = out.iter().map(|f| f.loaded).collect();
+        if start == FrameStart::Carried {
+            assert_eq!(loaded, [true, false, true, true, false], "{array:?}");
+            for pair in out.windows(2) {
+                let slides = &pair[0].result.frame.slides;
+                assert_eq!(pair[1].result.partition, after_slides(&pair[0].result.partition, slides));
+            }
+        } else {
+            assert!(loaded[2] && loaded[3], "{array:?}: {loaded:?}");
         }
     }
 }

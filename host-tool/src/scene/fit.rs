@@ -51,15 +51,23 @@ pub fn fit(scene: &mut Scene, grid: Option<[u16; 3]>) -> Result<(), HostError> {
         s.center = place(s.center);
         s.radius *= scale;
     }
+    for key in &mut scene.sphere_keyframes {
+        key.center = place(key.center);
+    }
     scene.grid = grid;
     Ok(())
 }
 
-/// The spheres' bounding box.
+/// The spheres' bounding box, wherever their keyframes move them.
 fn bounds(scene: &Scene) -> Option<([f64; 3], [f64; 3])> {
-    let mut boxes = scene.spheres.iter().map(|s| {
-        (std::array::from_fn(|a| s.center[a] - s.radius), std::array::from_fn(|a| s.center[a] + s.radius))
+    let moved = scene.sphere_keyframes.iter().filter_map(|key| {
+        let s = scene.spheres.get(key.sphere as usize)?;
+        Some((key.center, s.radius))
     });
+    let mut boxes =
+        scene.spheres.iter().map(|s| (s.center, s.radius)).chain(moved).map(|(center, radius)| {
+            (std::array::from_fn(|a| center[a] - radius), std::array::from_fn(|a| center[a] + radius))
+        });
     let first: ([f64; 3], [f64; 3]) = boxes.next()?;
     Some(boxes.fold(first, |(lo, hi), (l, h)| {
         (std::array::from_fn(|a| lo[a].min(l[a])), std::array::from_fn(|a| hi[a].max(h[a])))
@@ -128,6 +136,24 @@ mod tests {
         let cam = s.camera.expect("camera");
         assert_eq!((cam.eye, cam.look_at), ([15.0, 15.0, 15.0 - 48.0], [15.0; 3]));
         s.validate().expect("valid once fitted");
+    }
+
+    #[test]
+    fn a_moving_sphere_is_fitted_wherever_its_keyframes_take_it() {
+        use crate::scene::path::SphereKeyframe;
+        let mut s = Scene::random(2, 1, 1.0, [8; 3]).expect("scene");
+        s.spheres = vec![sphere([-1.0, 0.0, 0.0], 0.5), sphere([1.0, 0.0, 0.0], 0.5)];
+        // Sphere 0 travels to x = 5: the box to fit runs from -1.5 to 5.5.
+        s.sphere_keyframes = vec![
+            SphereKeyframe { sphere: 0, frame: 0, center: [-1.0, 0.0, 0.0] },
+            SphereKeyframe { sphere: 0, frame: 10, center: [5.0, 0.0, 0.0] },
+        ];
+        fit(&mut s, Some([35, 35, 35])).expect("fits");
+        // Extent 7 along x fills 96% of 35 cubes: scale 4.8, centre x 2 at 17.5.
+        assert_eq!(s.spheres[0].center[0], 17.5 - 3.0 * 4.8);
+        assert_eq!(s.sphere_keyframes[1].center[0], 17.5 + 3.0 * 4.8);
+        assert_eq!(s.sphere_keyframes[0].center, s.spheres[0].center);
+        s.validate().expect("valid once fitted, at every keyframe");
     }
 
     #[test]

@@ -11,7 +11,9 @@
 //!   "lights": [{"position": [40, 60, -20], "color": [0.8, 0.8, 0.8]}],
 //!   "spheres": [{"center": [16, 16, 16], "radius": 2.5, "color": [0.9, 0.3, 0.2],
 //!                "ambient": 0.3, "diffuse": 0.7, "specular": 0.4, "shininess": 24, "reflect": 0.3}],
-//!   "keyframes": [{"frame": 0, "camera": {"eye": [16, 16, -30], "look_at": [16, 16, 16]}}]
+//!   "keyframes": [{"frame": 0, "camera": {"eye": [16, 16, -30], "look_at": [16, 16, 16]}}],
+//!   "sphere_keyframes": [{"sphere": 0, "frame": 0, "center": [16, 16, 16]},
+//!                        {"sphere": 0, "frame": 30, "center": [16, 24, 16]}]
 //! }
 //! ```
 //! Lengths are in unit cubes; colours and coefficients in `[0, 2)`.
@@ -133,6 +135,10 @@ pub struct Scene {
     /// Cameras pinned to frames of a sequence ([`path`]); none: `camera` throughout.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub keyframes: Vec<path::Keyframe>,
+    /// Spheres' centres pinned to frames of a sequence ([`path`]); a sphere
+    /// with none stands at its `center` throughout.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sphere_keyframes: Vec<path::SphereKeyframe>,
 }
 
 fn default_grid() -> [u16; 3] {
@@ -303,6 +309,7 @@ impl Scene {
             lights,
             spheres,
             keyframes: Vec::new(),
+            sphere_keyframes: Vec::new(),
         };
         scene.validate()?;
         Ok(scene)

@@ -53,6 +53,7 @@ pub fn parse(text: &str, source: &str, skip_unsupported: bool) -> Result<NffScen
         lights: Vec::new(),
         spheres: Vec::new(),
         keyframes: Vec::new(),
+        sphere_keyframes: Vec::new(),
     };
     let mut fill = NO_FILL;
     let mut warnings = Vec::new();

@@ -1,9 +1,13 @@
-//! Camera paths: where the camera is at each frame of a sequence.
+//! Paths: where the camera and the spheres are at each frame of a sequence.
 //!
 //! A scene's own camera stands still unless the scene file gives keyframes
 //! (`"keyframes": [{"frame": 0, "camera": {...}}, ...]`, linear between them,
 //! held before the first and after the last) or `render --orbit DEGREES`
-//! swings it about its look-at point.
+//! swings it about its look-at point. A sphere stands at its `center` unless
+//! the file gives it keyframes of its own (`"sphere_keyframes": [{"sphere":
+//! 0, "frame": 0, "center": [...]}, ...]`), linear and held the same way.
+
+use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
@@ -18,6 +22,18 @@ pub struct Keyframe {
     pub frame: u32,
     /// The camera at that frame.
     pub camera: Camera,
+}
+
+/// A sphere's centre pinned to a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereKeyframe {
+    /// The sphere, by its index in the scene's `spheres`.
+    pub sphere: u32,
+    /// Frame number, from 0.
+    pub frame: u32,
+    /// The sphere's centre at that frame.
+    pub center: [f64; 3],
 }
 
 /// How the camera moves over a sequence of frames.
@@ -48,13 +64,33 @@ impl CameraPath {
         }
     }
 
-    /// The (valid) scene as frame `k` of `frames` sees it: only its camera
-    /// is new, and checked.
+    /// The (valid) scene as frame `k` of `frames` sees it: its camera (new,
+    /// and checked) and its spheres where their keyframes put them.
     pub fn frame(&self, scene: &Scene, k: u32, frames: u32) -> Result<Scene, HostError> {
         let camera = self.camera(scene, k, frames);
         scene.check_camera(&camera).map_err(|e| e.context(&format!("frame {k}")))?;
-        Ok(Scene { camera: Some(camera), ..scene.clone() })
+        let mut at = Scene { camera: Some(camera), ..scene.clone() };
+        for (i, keys) in sphere_paths(scene) {
+            let center = match between(&keys, |key| key.frame, k) {
+                Some(Between::Held(key)) => key.center,
+                Some(Between::Lerp(a, b, t)) => lerp(a.center, b.center, t),
+                None => continue,
+            };
+            if let Some(s) = at.spheres.get_mut(i) {
+                s.center = center;
+            }
+        }
+        Ok(at)
     }
+}
+
+/// Each sphere that has keyframes, with them in the file's order.
+fn sphere_paths(scene: &Scene) -> BTreeMap<usize, Vec<SphereKeyframe>> {
+    let mut paths: BTreeMap<usize, Vec<SphereKeyframe>> = BTreeMap::new();
+    for key in &scene.sphere_keyframes {
+        paths.entry(key.sphere as usize).or_default().push(*key);
+    }
+    paths
 }
 
 /// Checks keyframes: in increasing frame order, each camera valid.
@@ -72,24 +108,74 @@ pub fn check_keyframes(scene: &Scene) -> Result<(), HostError> {
             .check_camera(&key.camera)
             .map_err(|e| e.context(&format!("keyframe at frame {}", key.frame)))?;
     }
+    check_sphere_keyframes(scene)
+}
+
+/// Checks sphere keyframes: each of a sphere in the scene, a sphere's in
+/// increasing frame order, and the sphere valid where each puts it (so
+/// everywhere between: the grid is convex).
+fn check_sphere_keyframes(scene: &Scene) -> Result<(), HostError> {
+    for (i, keys) in sphere_paths(scene) {
+        let Some(sphere) = scene.spheres.get(i) else {
+            return Err(input(format!(
+                "sphere_keyframes name sphere {i}, but the scene has {} spheres",
+                scene.spheres.len()
+            )));
+        };
+        for pair in keys.windows(2) {
+            if pair[1].frame <= pair[0].frame {
+                return Err(input(format!(
+                    "sphere {i}'s keyframes must be in increasing frame order: frame {} follows frame {}",
+                    pair[1].frame, pair[0].frame
+                )));
+            }
+        }
+        for key in &keys {
+            let moved = super::SphereDesc { center: key.center, ..*sphere };
+            super::validate_sphere(i, &moved, &scene.grid.map(f64::from))
+                .map_err(|e| e.context(&format!("sphere keyframe at frame {}", key.frame)))?;
+        }
+    }
     Ok(())
+}
+
+/// Where frame `k` falls among keys in increasing frame order.
+enum Between<'a, K> {
+    /// On a key, before the first or after the last: that key's value holds.
+    Held(&'a K),
+    /// Between two keys, this far from the first to the second.
+    Lerp(&'a K, &'a K, f64),
+}
+
+/// Frame `k` among `keys` (in increasing `frame` order); `None` if there
+/// are none.
+fn between<K>(keys: &[K], frame: impl Fn(&K) -> u32, k: u32) -> Option<Between<'_, K>> {
+    let after = keys.partition_point(|key| frame(key) <= k);
+    match (after.checked_sub(1).and_then(|i| keys.get(i)), keys.get(after)) {
+        (Some(a), Some(b)) => {
+            Some(Between::Lerp(a, b, f64::from(k - frame(a)) / f64::from(frame(b) - frame(a))))
+        }
+        (Some(a), None) => Some(Between::Held(a)),
+        (None, first) => first.map(Between::Held),
+    }
+}
+
+/// `t` of the way from `x` to `y`.
+fn lerp(x: [f64; 3], y: [f64; 3], t: f64) -> [f64; 3] {
+    std::array::from_fn(|i| x[i] + (y[i] - x[i]) * t)
 }
 
 /// The camera at frame `k` between the scene's keyframes.
 fn keyframed(scene: &Scene, k: u32) -> Camera {
-    let keys = &scene.keyframes;
-    let Some(first) = keys.first() else { return scene.camera() };
-    let after = keys.partition_point(|key| key.frame <= k);
-    let (Some(a), Some(b)) = (keys.get(after.wrapping_sub(1)), keys.get(after)) else {
-        return if k < first.frame { first.camera } else { keys.last().map_or(first.camera, |l| l.camera) };
-    };
-    let t = f64::from(k - a.frame) / f64::from(b.frame - a.frame);
-    let lerp = |x: [f64; 3], y: [f64; 3]| std::array::from_fn(|i| x[i] + (y[i] - x[i]) * t);
-    Camera {
-        eye: lerp(a.camera.eye, b.camera.eye),
-        look_at: lerp(a.camera.look_at, b.camera.look_at),
-        up: lerp(a.camera.up, b.camera.up),
-        fov_deg: a.camera.fov_deg + (b.camera.fov_deg - a.camera.fov_deg) * t,
+    match between(&scene.keyframes, |key| key.frame, k) {
+        None => scene.camera(),
+        Some(Between::Held(key)) => key.camera,
+        Some(Between::Lerp(a, b, t)) => Camera {
+            eye: lerp(a.camera.eye, b.camera.eye, t),
+            look_at: lerp(a.camera.look_at, b.camera.look_at, t),
+            up: lerp(a.camera.up, b.camera.up, t),
+            fov_deg: a.camera.fov_deg + (b.camera.fov_deg - a.camera.fov_deg) * t,
+        },
     }
 }
 
@@ -151,5 +237,49 @@ mod tests {
         s.keyframes.swap(0, 1);
         let e = check_keyframes(&s).expect_err("out of order");
         assert!(e.to_string().contains("increasing frame order"), "{e}");
+    }
+
+    #[test]
+    fn spheres_move_along_their_own_keyframes_and_the_rest_stand_still() {
+        let mut s = scene();
+        let key = |sphere, frame, x: f64| SphereKeyframe { sphere, frame, center: [x, 8.0, 8.0] };
+        // Sphere 1 from x 2 at frame 4 to x 10 at frame 8; sphere 3's keys
+        // interleaved with them in the file.
+        s.sphere_keyframes = vec![key(1, 4, 2.0), key(3, 0, 12.0), key(1, 8, 10.0), key(3, 2, 6.0)];
+        s.validate().expect("valid");
+        let still = s.spheres.clone();
+        let path = CameraPath::Orbit { degrees: 90.0 };
+        let centre = |k: u32, i: usize| path.frame(&s, k, 10).expect("frame").spheres[i].center;
+        assert_eq!(centre(0, 1), [2.0, 8.0, 8.0]);
+        assert_eq!(centre(5, 1), [4.0, 8.0, 8.0]);
+        assert_eq!(centre(7, 1), [8.0, 8.0, 8.0]);
+        assert_eq!(centre(9, 1), [10.0, 8.0, 8.0]);
+        assert_eq!(centre(1, 3), [9.0, 8.0, 8.0]);
+        assert_eq!(centre(9, 3), [6.0, 8.0, 8.0]);
+        for k in [0, 5, 9] {
+            let at = path.frame(&s, k, 10).expect("frame");
+            assert_eq!((at.spheres[0], at.spheres[2]), (still[0], still[2]), "frame {k}");
+            assert_eq!((at.spheres[1].radius, at.spheres[1].color), (still[1].radius, still[1].color));
+            // The camera follows its own path.
+            assert_eq!(at.camera, Some(path.camera(&s, k, 10)));
+        }
+    }
+
+    #[test]
+    fn sphere_keyframes_are_checked() {
+        let mut s = scene();
+        let key = |sphere, frame, x: f64| SphereKeyframe { sphere, frame, center: [x, 8.0, 8.0] };
+        let refused = |s: &Scene| s.validate().expect_err("refused").to_string();
+        s.sphere_keyframes = vec![key(4, 0, 2.0)];
+        let e = refused(&s);
+        assert!(e.contains("sphere 4") && e.contains("has 4 spheres"), "{e}");
+        s.sphere_keyframes = vec![key(0, 3, 2.0), key(1, 0, 2.0), key(0, 3, 4.0)];
+        let e = refused(&s);
+        assert!(e.contains("sphere 0's keyframes must be in increasing frame order"), "{e}");
+        s.sphere_keyframes = vec![key(2, 0, 2.0), key(2, 5, 17.0)];
+        let e = refused(&s);
+        assert!(e.contains("frame 5") && e.contains("outside the grid"), "{e}");
+        s.sphere_keyframes = vec![key(2, 0, f64::NAN)];
+        assert!(matches!(s.validate(), Err(HostError::NonFinite(_))), "{:?}", s.validate());
     }
 }

@@ -7,7 +7,9 @@
 //! no frame pays for a preview; or each frame is planned afresh
 //! ([`FrameStart::Planned`]: `--layout preview` fits each frame's own
 //! preview), and the scene is sent again whenever the planned subregions
-//! differ from those the nodes hold.
+//! differ from those the nodes hold. Spheres that move by keyframes are sent
+//! again, all of them, in each frame where they stand elsewhere than in the
+//! last frame sent (the subregions stay carried or planned as above).
 
 use std::time::{Duration, Instant};
 
@@ -17,8 +19,8 @@ use crate::plan::partition::Partition;
 use crate::plan::{Plan, initial_partition};
 use crate::results::RenderResult;
 use crate::results::history::after_slides;
-use crate::scene::Scene;
 use crate::scene::path::CameraPath;
+use crate::scene::{Scene, SphereDesc};
 use crate::session::transport::Transport;
 
 /// Where each frame after the first starts.
@@ -50,8 +52,8 @@ pub struct SequenceFrame<T> {
     pub number: u32,
     /// The frame's image and accounting (its partition: where it started).
     pub result: RenderResult<T>,
-    /// Whether the scene was sent for this frame (the first, and planned
-    /// frames whose subregions changed).
+    /// Whether the scene was sent for this frame (the first, planned frames
+    /// whose subregions changed, and frames where spheres moved).
     pub loaded: bool,
     /// Host time spent planning the frame (the preview, with `--layout preview`).
     pub planning: Duration,
@@ -75,8 +77,10 @@ pub fn run<T: Transport>(
     mut each: impl FnMut(SequenceFrame<T::Time>) -> Result<(), HostError>,
 ) -> Result<(), HostError> {
     let capacity = transport.capacity();
-    // The subregions the nodes hold, once a scene is loaded.
+    // The subregions the nodes hold, once a scene is loaded, and the
+    // spheres they were sent.
     let mut held: Option<Partition> = None;
+    let mut sent: Option<Vec<SphereDesc>> = None;
     for k in 0..sequence.frames {
         let planning = Instant::now();
         let at = sequence.path.frame(scene, k, sequence.frames)?;
@@ -86,9 +90,10 @@ pub fn run<T: Transport>(
         };
         let plan = Plan::with_partition(&at, opts, partition, capacity)?;
         let planning = planning.elapsed();
-        let loaded = held.as_ref() != Some(&plan.partition);
+        let loaded = held.as_ref() != Some(&plan.partition) || sent.as_deref() != Some(&at.spheres[..]);
         if loaded {
             super::load(transport, &at, &plan);
+            sent = Some(at.spheres.clone());
         }
         let result = super::frame(transport, &plan, k)
             .map_err(|e| if sequence.frames > 1 { e.context(&format!("frame {k}")) } else { e })?;
