@@ -376,12 +376,13 @@ fn emulated_boards_under_link_faults_render_the_clean_image() {
     assert_eq!(told.lost, 0, "{told:?}");
 }
 
-/// A sequence on emulated boards: the scene sent once, three orbiting frames
-/// with the boundaries carried (sliding), each frame's image the in-memory
-/// board's single-frame render of its camera.
+/// A sequence on emulated boards: three orbiting frames with the boundaries
+/// carried (sliding), a sphere that moves before the third so the boards are
+/// sent the scene again mid-session, each frame's image the in-memory
+/// board's single-frame render of its camera with the sphere put in place.
 #[test]
 fn an_emulated_sequence_matches_single_frames() {
-    use host_tool::scene::path::CameraPath;
+    use host_tool::scene::path::{CameraPath, SphereKeyframe};
     use host_tool::session::clock::Clock;
     use host_tool::session::sequence::{FrameSink, FrameStart, Sequence, SequenceFrame};
 
@@ -400,7 +401,14 @@ fn an_emulated_sequence_matches_single_frames() {
     let _one = one_array();
     let board = EmulatedBoard::Mps2An385;
     let backend = Backend::Qemu { board, firmware: firmware(board) };
-    let s = scene();
+    let mut s = scene();
+    let (from, to) = ([2.0, 3.0, 4.0], [9.0, 8.0, 6.0]);
+    s.spheres[3].center = from;
+    s.sphere_keyframes = vec![
+        SphereKeyframe { sphere: 3, frame: 1, center: from },
+        SphereKeyframe { sphere: 3, frame: 2, center: to },
+    ];
+    s.validate().expect("valid scene");
     let opts = options(Some(SLIDING));
     let path = CameraPath::Orbit { degrees: 60.0 };
     let sequence = Sequence { frames: 3, path, start: FrameStart::Carried };
@@ -416,10 +424,13 @@ fn an_emulated_sequence_matches_single_frames() {
     .unwrap_or_else(|e| panic!("sequence: {e}"));
     assert_eq!(kept.0.len(), 3);
     for (k, (sums, loaded, slides)) in kept.0.iter().enumerate() {
-        let at = path.frame(&s, k as u32, 3).expect("frame scene");
+        let mut at = s.clone();
+        at.camera = Some(path.camera(&s, k as u32, 3));
+        at.sphere_keyframes.clear();
+        at.spheres[3].center = if k < 2 { from } else { to };
         let single = render_sim(&at, &options(None)).expect("in-memory render");
         assert!(*sums == single.frame.sums, "frame {k} differs from its single-frame render");
-        assert_eq!(*loaded, k == 0, "frame {k}: the scene is sent once");
+        assert_eq!(*loaded, k != 1, "frame {k}: the scene is sent first and where the sphere moved");
         eprintln!("emulated sequence frame {k}: {slides} slides");
     }
 }
