@@ -178,4 +178,12 @@ fn a_moving_sphere_is_sent_again_where_it_moved_and_every_frame_stays_identical(
             assert!(loaded[2] && loaded[3], "{array:?}: {loaded:?}");
         }
     }
+    // A move finer than the wire's 2^-16 cube leaves the spheres the nodes
+    // hold as they were: nothing is sent again, and every frame is the first.
+    s.sphere_keyframes[1].center = [from[0] + 1e-7, from[1], from[2]];
+    let opts = options([2, 2, 2], sliding(PROPORTIONAL), Layout::Even);
+    let out = run(&s, &opts, &Sequence { frames, path: still, start: FrameStart::Carried });
+    let loaded: Vec<bool> = out.iter().map(|f| f.loaded).collect();
+    assert_eq!(loaded, [true, false, false, false, false]);
+    assert!(out.iter().all(|f| f.result.frame.sums == references[0].frame.sums));
 }

@@ -9,7 +9,9 @@
 //! preview), and the scene is sent again whenever the planned subregions
 //! differ from those the nodes hold. Spheres that move by keyframes are sent
 //! again, all of them, in each frame where they stand elsewhere than in the
-//! last frame sent (the subregions stay carried or planned as above).
+//! last frame sent, as the nodes hold them (quantised: a move smaller than
+//! the wire's resolution sends nothing); the subregions stay carried or
+//! planned as above.
 
 use std::time::{Duration, Instant};
 
@@ -19,9 +21,10 @@ use crate::plan::partition::Partition;
 use crate::plan::{Plan, initial_partition};
 use crate::results::RenderResult;
 use crate::results::history::after_slides;
+use crate::scene::Scene;
 use crate::scene::path::CameraPath;
-use crate::scene::{Scene, SphereDesc};
 use crate::session::transport::Transport;
+use link_proto::SphereMsg;
 
 /// Where each frame after the first starts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -80,7 +83,7 @@ pub fn run<T: Transport>(
     // The subregions the nodes hold, once a scene is loaded, and the
     // spheres they were sent.
     let mut held: Option<Partition> = None;
-    let mut sent: Option<Vec<SphereDesc>> = None;
+    let mut sent: Option<Vec<SphereMsg>> = None;
     for k in 0..sequence.frames {
         let planning = Instant::now();
         let at = sequence.path.frame(scene, k, sequence.frames)?;
@@ -90,10 +93,11 @@ pub fn run<T: Transport>(
         };
         let plan = Plan::with_partition(&at, opts, partition, capacity)?;
         let planning = planning.elapsed();
-        let loaded = held.as_ref() != Some(&plan.partition) || sent.as_deref() != Some(&at.spheres[..]);
+        let spheres = at.sphere_msgs();
+        let loaded = held.as_ref() != Some(&plan.partition) || sent.as_ref() != Some(&spheres);
         if loaded {
             super::load(transport, &at, &plan);
-            sent = Some(at.spheres.clone());
+            sent = Some(spheres);
         }
         let result = super::frame(transport, &plan, k)
             .map_err(|e| if sequence.frames > 1 { e.context(&format!("frame {k}")) } else { e })?;
