@@ -187,3 +187,32 @@ fn a_moving_sphere_is_sent_again_where_it_moved_and_every_frame_stays_identical(
     assert_eq!(loaded, [true, false, false, false, false]);
     assert!(out.iter().all(|f| f.result.frame.sums == references[0].frame.sums));
 }
+
+/// A scene sent again between frames keeps the grants neighbours give at a
+/// frame's start: a neighbour that has its scene and start first grants us
+/// rays before our own scene arrives, and dropping them with our old scene
+/// left every ray to that neighbour a reply of its own all frame. A sphere
+/// nudged one step of the wire's 2^-16 a frame makes each frame a reload
+/// with the work of a still scene: the two must send about as many messages.
+#[test]
+fn a_frame_after_a_reload_keeps_its_neighbours_grants() {
+    let mut s = scene();
+    let c = s.spheres[0].center;
+    let opts = options([4, 4, 4], None, Layout::Even);
+    let frames = 3;
+    let sequence = Sequence { frames, path: CameraPath::Keyframes, start: FrameStart::Carried };
+    let still = run(&s, &opts, &sequence);
+    s.sphere_keyframes = vec![
+        SphereKeyframe { sphere: 0, frame: 0, center: c },
+        SphereKeyframe { sphere: 0, frame: 2, center: [c[0] + 2.0 / 65536.0, c[1], c[2]] },
+    ];
+    let nudged = run(&s, &opts, &sequence);
+    assert!(nudged.iter().all(|f| f.loaded), "every frame must be a reload");
+    for (a, b) in still.iter().zip(&nudged).skip(1) {
+        let messages =
+            |f: &SequenceFrame<Cycles>| f.result.busy.iter().flatten().map(|b| b.sent).sum::<u64>();
+        let (m_still, m_nudged) = (messages(a), messages(b));
+        eprintln!("frame {}: {m_still} messages still, {m_nudged} reloaded", a.number);
+        assert!(m_nudged * 100 <= m_still * 102, "frame {}: {m_nudged} messages against {m_still}", a.number);
+    }
+}

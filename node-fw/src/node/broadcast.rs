@@ -70,8 +70,15 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 self.render = None;
                 self.pool.clear();
                 self.retiring = None;
-                for n in &mut self.ports {
-                    (n.grants_held, n.grants_given, n.grants_due) = (0, 0, 0);
+                // Grants we hold stand unless a frame is cut short: after a
+                // frame's end they are void already (a neighbour's end note
+                // voids its grants) or a neighbour that started the next
+                // frame before our scene came gave them, and would wait for
+                // their use all frame.
+                if self.phase == Phase::Rendering {
+                    for n in &mut self.ports {
+                        (n.grants_held, n.grants_given, n.grants_due) = (0, 0, 0);
+                    }
                 }
                 self.phase = Phase::Loading;
             }
