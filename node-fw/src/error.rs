@@ -4,26 +4,45 @@ use link_proto::{ErrorCode, ErrorReport};
 
 /// The input field an out-of-range error is about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u8)]
 pub enum Field {
     /// Grid size (1..=256 cubes per axis).
-    Grid = 1,
+    Grid,
     /// A ray origin, eye or light position.
-    Origin = 2,
+    Origin,
     /// A ray direction (zero, or not of unit length).
-    Direction = 3,
+    Direction,
     /// A sphere centre (must lie in the closed grid box).
-    Center = 4,
+    Center,
     /// A sphere radius.
-    Radius = 5,
+    Radius,
     /// A traversal cell that does not lie on its ray's digital line.
-    Cell = 6,
+    Cell,
     /// A subregion box (empty, outside the grid, or larger than the node holds).
-    Subregion = 7,
+    Subregion,
     /// A ray parameter.
-    Parameter = 8,
+    Parameter,
     /// The reflection depth (at most [`link_proto::MAX_DEPTH`]).
-    Depth = 9,
+    Depth,
+}
+
+impl Field {
+    /// The field's number in an [`ErrorReport`] (`a`), 1 to 9 in the
+    /// order above. Not the enum's discriminant: a node's storage starts
+    /// zero-filled ([`crate::node::Node::renew`]), so every enum it holds
+    /// must have a variant at zero.
+    pub const fn code(self) -> u32 {
+        match self {
+            Field::Grid => 1,
+            Field::Origin => 2,
+            Field::Direction => 3,
+            Field::Center => 4,
+            Field::Radius => 5,
+            Field::Cell => 6,
+            Field::Subregion => 7,
+            Field::Parameter => 8,
+            Field::Depth => 9,
+        }
+    }
 }
 
 /// Everything that can go wrong in a node.
@@ -56,7 +75,7 @@ impl Error {
     /// The report sent to the host for this error.
     pub fn report(self, node: u16) -> ErrorReport {
         let (code, a, b) = match self {
-            Error::OutOfRange(field) => (ErrorCode::OutOfRange, field as u32, 0),
+            Error::OutOfRange(field) => (ErrorCode::OutOfRange, field.code(), 0),
             Error::SphereCapacity { capacity } => (ErrorCode::SphereCapacity, capacity, capacity + 1),
             Error::RefCapacity { capacity, needed } => (ErrorCode::RefCapacity, capacity, needed),
             Error::CubeCapacity { capacity, needed } => (ErrorCode::CubeCapacity, capacity, needed),

@@ -330,7 +330,7 @@ fn a_node_reports_bad_input_the_host_did_not_catch() {
     Transport::run(&mut board, &mut frame).expect("the node answers");
     let e = frame.errors.first().expect("the node reported an error");
     assert_eq!((e.node, e.code), (0, ErrorCode::OutOfRange));
-    assert_eq!(e.a, node_fw::Field::Center as u32);
+    assert_eq!(e.a, node_fw::Field::Center.code());
 }
 
 /// Deeper than `MAX_DEPTH` a pixel's credit could split to nothing and the
@@ -350,7 +350,7 @@ fn a_node_refuses_a_depth_beyond_the_limit() {
         let e = frame.errors.first();
         assert_eq!(
             e.map(|e| (e.code, e.a)),
-            refused.then_some((ErrorCode::OutOfRange, node_fw::Field::Depth as u32)),
+            refused.then_some((ErrorCode::OutOfRange, node_fw::Field::Depth.code())),
             "depth {depth}"
         );
     }
