@@ -204,6 +204,24 @@ impl<const P: usize> RayPool<P> {
         }
     }
 
+    /// Makes this pool what [`RayPool::new`] makes, in place, a slot at a
+    /// time: for a pool in storage that was not built by `new` (a board's
+    /// node is zero-filled at boot), where a new pool built on the stack
+    /// and moved would take more stack than the board has.
+    pub fn renew(&mut self) {
+        for slot in &mut self.slots {
+            *slot = None;
+        }
+        self.kinds.fill(Kind::Free);
+        self.leaving.clear();
+        self.leaving_by = [0; 7];
+        self.ready.clear();
+        self.held.clear();
+        self.free.clear();
+        self.used_per_level = [0; MAX_LEVELS];
+        (self.depth, self.base, self.reserved, self.top) = (0, 0, 0, 0);
+    }
+
     /// Sets `depth` slots for each class level `0..=top`, and `shared` more
     /// at level 0, open to every class (`None`: every slot left over), and
     /// empties the pool.

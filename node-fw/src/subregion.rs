@@ -117,6 +117,23 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         }
     }
 
+    /// Makes this subregion what [`Subregion::new`] makes, in place: for
+    /// storage that was not built by `new` (a board's node is zero-filled
+    /// at boot), where a new one built on the stack and moved would take
+    /// more stack than the board has.
+    pub fn renew(&mut self) {
+        self.grid = Grid::UNIT;
+        self.bounds = CubeBox { lo: [0; 3], hi: [0; 3] };
+        self.owned = self.bounds;
+        self.spheres.clear();
+        self.mailbox.fill(0);
+        self.stamp = 0;
+        self.cube_start.fill(0);
+        self.refs.fill(0);
+        self.ref_total = 0;
+        self.indexed = false;
+    }
+
     /// Takes the box `[lo, hi)` of `grid` and drops every sphere.
     pub fn assign(&mut self, grid: Grid, bounds: CubeBox) -> Result<(), Error> {
         let size = grid.size();

@@ -144,6 +144,7 @@ enum Phase {
 }
 
 /// A node with `S` spheres, `R` sphere references, `C` cubes and `P` ray slots.
+#[derive(Debug)]
 pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> {
     id: u16,
     phase: Phase,
@@ -242,6 +243,43 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             health_told: [PortHealth { resent: 0, damaged: 0, lost: 0 }; 7],
             retiring: None,
         }
+    }
+
+    /// Makes this node what [`Node::new`]`(id)` makes, in place, field by
+    /// field. For a node in storage that `new` did not build: a board's
+    /// node is a zero-filled static (in `.bss`, so that its tens of
+    /// kilobytes of initial value take no flash), and a node built on the
+    /// stack and moved there would need more stack than the board has.
+    pub fn renew(&mut self, id: u16) {
+        self.id = id;
+        self.phase = Phase::Idle;
+        self.header = NO_HEADER;
+        self.grid = Grid::UNIT;
+        self.assign = None;
+        self.region.renew();
+        self.lights.clear();
+        self.spheres_seen = 0;
+        self.render = None;
+        self.cursor = 0;
+        self.stride = 1;
+        self.pool.renew();
+        for port in &mut self.ports {
+            *port = Neighbour::NEW;
+        }
+        self.hello_due = true;
+        self.session = None;
+        self.board = UNNAMED_BOARD;
+        self.error_due = None;
+        self.load_due = None;
+        self.meter = LoadMeter::new();
+        self.totals = Totals::default();
+        self.balance = None;
+        self.intervals = IntervalClock::idle();
+        self.slide = SlideState::new();
+        self.control.clear();
+        self.frames_ended = 0;
+        self.health_told = [PortHealth::default(); 7];
+        self.retiring = None;
     }
 
     /// The capacities this node was built with.
