@@ -39,15 +39,17 @@ check_size() {
 
 (cd firmware && cargo build --release --locked --bins)
 check_size mps2-an385 target/thumbv7m-none-eabi/release/node 128 64
-# The channels' static is built all zeros so that it takes no flash (node.rs):
+# The node's and the channels' statics are built all zeros so that they take no flash (node.rs):
 # a non-zero initial value would move all of it into `.data`, copied from flash.
 NM="$(dirname "$SIZE")/llvm-nm"
 # (grep without -q reads all of nm's output: under pipefail, nm cut off by an
 # early exit would fail the pipe.)
-"$NM" "$OUT/node-mps2-an385.elf" | grep ' [bB] .*node5LINKS' >/dev/null || {
-    echo "error: the node's LINKS static is not zero-initialised: its initial values take flash" >&2
-    exit 1
-}
+for static in LINKS NODE; do
+    "$NM" "$OUT/node-mps2-an385.elf" | grep " [bB] .*node${#static}$static" >/dev/null || {
+        echo "error: the node's $static static is not zero-initialised: its initial values take flash" >&2
+        exit 1
+    }
+done
 # A firmware that panics on purpose: the emulated tests check that its last words reach the host.
 cp target/thumbv7m-none-eabi/release/fault_check "$OUT/fault-check-mps2-an385.elf"
 
