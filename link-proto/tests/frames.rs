@@ -245,6 +245,37 @@ proptest! {
         prop_assert_eq!(decode_all(&mut dec, &bytes), vec![Ok(frame)]);
     }
 
+    /// A channel decodes into one frame it keeps: a frame decoded replaces
+    /// all of it (one without an acknowledgement clears the last one's), a
+    /// damaged one leaves it as it was.
+    #[test]
+    fn decoding_into_a_kept_frame_replaces_it_or_leaves_it(
+        kept in arb_frame(),
+        next in arb_frame(),
+        ray in arb_ray(),
+        at in any::<prop::sample::Index>(),
+    ) {
+        let ray_frame = Frame { msg: Message::GrantedRay(ray), ..next.clone() };
+        for next in [next, ray_frame] {
+            let bytes = encode(&next);
+            let mut out = kept.clone();
+            let mut dec = FrameDecoder::new();
+            prop_assert_eq!(dec.decode_into(&mut &bytes[..], &mut out), Some(Ok(())));
+            prop_assert_eq!(&out, &next);
+
+            // One byte inside the delimiters changed, never to a zero.
+            let mut damaged = bytes.clone();
+            let i = 1 + at.index(damaged.len() - 2);
+            damaged[i] = if damaged[i] == 0xff { 0xfe } else { damaged[i] + 1 };
+            let mut out = kept.clone();
+            let mut rest = &damaged[..];
+            while let Some(result) = dec.decode_into(&mut rest, &mut out) {
+                prop_assert!(result.is_err(), "a damaged frame decoded");
+            }
+            prop_assert_eq!(&out, &kept);
+        }
+    }
+
     /// Every frame's payload is its postcard serialization, the trailer and
     /// the CRC, whichever path wrote it (rays are packed without serde), and
     /// a payload postcard wrote decodes to the frame.

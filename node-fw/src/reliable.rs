@@ -217,7 +217,9 @@ impl<const W: usize> Channel<W> {
     /// acknowledged, and the sender sends it again later.
     pub fn receive(&mut self, bytes: &[u8], mut deliver: impl FnMut(Message) -> bool) {
         let mut rest = bytes;
-        while let Some(result) = self.decoder.decode(&mut rest) {
+        // Decoded in place: a frame is as large as a ray with its hit.
+        let mut frame = Frame::new(0, Message::Space);
+        while let Some(result) = self.decoder.decode_into(&mut rest, &mut frame) {
             match result {
                 Err(
                     DecodeError::Oversize
@@ -226,7 +228,7 @@ impl<const W: usize> Channel<W> {
                     | DecodeError::Crc
                     | DecodeError::Body,
                 ) => self.stats.corrupted += 1,
-                Ok(frame) => self.take(frame, &mut deliver),
+                Ok(()) => self.take(&mut frame, &mut deliver),
             }
         }
     }
@@ -241,7 +243,7 @@ impl<const W: usize> Channel<W> {
         core::mem::take(&mut self.peer_restarted)
     }
 
-    fn take(&mut self, frame: Frame, deliver: &mut impl FnMut(Message) -> bool) {
+    fn take(&mut self, frame: &mut Frame, deliver: &mut impl FnMut(Message) -> bool) {
         // A piggybacked ack counts as a standalone one would, whatever the
         // frame it rides on.
         if let Some(seq) = frame.ack
@@ -272,8 +274,8 @@ impl<const W: usize> Channel<W> {
                 deliver(Message::Hello(h));
             }
             _ if self.peer.is_none() => self.stats.discarded += 1,
-            msg if frame.seq == self.expected => {
-                if deliver(msg) {
+            _ if frame.seq == self.expected => {
+                if deliver(core::mem::replace(&mut frame.msg, Message::Space)) {
                     self.expected = self.expected.wrapping_add(1);
                     self.control_due = Owed::Ack(frame.seq);
                     self.taken_unacked += 1;

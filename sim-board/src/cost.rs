@@ -50,11 +50,11 @@ impl Default for CostModel {
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (four frames on a board): one end of a hop (the ray in
     /// its compact wire form, the reply carrying the ray's ack, the reply's
-    /// ack alone every fourth reply) 1 670.8, and of a ray reply with its ack
-    /// alone every fourth time 669.6, which stands for every short message; a
-    /// ray end is charged the difference, 1 001 (the UART's bytes are the link
+    /// ack alone every fourth reply) 1 614.2, and of a ray reply with its ack
+    /// alone every fourth time 649.3, which stands for every short message; a
+    /// ray end is charged the difference, 965 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every fourth ray) 1 142.0. The rays are half primaries from the eye,
+    /// every fourth ray) 1 106.2. The rays are half primaries from the eye,
     /// half reflections from inside the grid with half their pixel's credit
     /// (39.0 bytes a frame). A node's end of a retirement (the host's acks
     /// taken) 1 394.1 with one record, 3 623.8 with six: 446 a further record.
@@ -65,9 +65,9 @@ impl Default for CostModel {
             trace: 278,
             shade: 6_941,
             create: 2_785,
-            ray_message: 1_001,
-            granted_ray: 1_142,
-            short_message: 671,
+            ray_message: 965,
+            granted_ray: 1_106,
+            short_message: 649,
             retire_message: 1_394,
             retire_record: 446,
             pass: 0,
