@@ -145,6 +145,23 @@ enum BenchCommand {
     /// Efficiency E = T(1) / (S T(S)) and where the busy cycles go, for
     /// S = 1, 8, 27, 64, 216, 512 on the in-memory board: a table, CSV and PNG.
     Scaling(ScalingArgs),
+    /// The same for every shape of one number of nodes (4x4x4, 4x8x2,
+    /// 8x8x1, ...), fastest first: how to cable the boards you have.
+    Shapes(ShapesArgs),
+}
+
+#[derive(Args)]
+struct ShapesArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    links: LinkArgs,
+    /// Nodes in the array: every X x Y x Z of this many is run.
+    #[arg(long, value_name = "S", default_value_t = 64)]
+    nodes: u32,
+    /// Output directory.
+    #[arg(long, value_name = "DIR", default_value = "shapes")]
+    out: PathBuf,
 }
 
 #[derive(Args)]
@@ -205,6 +222,7 @@ fn main() -> ExitCode {
             .and_then(|()| if pass { Ok(()) } else { Err(HostError::Node("a stiff case failed".into())) })
         }
         Command::Bench(BenchCommand::Scaling(args)) => bench_scaling(args),
+        Command::Bench(BenchCommand::Shapes(args)) => bench_shapes(args),
         Command::Bench(BenchCommand::Animation(args)) => bench_animation(args),
         Command::Soak(args) => soak(args),
         Command::Results(args) => return results(&args),
@@ -374,6 +392,18 @@ fn bench_scaling(args: ScalingArgs) -> Result<(), HostError> {
         lab::scaling::ScalingConfig::full(base)
     };
     let table = lab::scaling::bench_scaling(&scene, &cfg, &args.out)?;
+    print!("{table}");
+    Ok(())
+}
+
+fn bench_shapes(args: ShapesArgs) -> Result<(), HostError> {
+    let scene_args = paper_scene(&args.scene);
+    let scene = load_scene(&scene_args)?;
+    let mut base = RenderOptions::new([1, 1, 1]);
+    base.size = scene_args.size;
+    args.links.apply(&mut base)?;
+    let layouts = [host_tool::plan::options::Layout::Even, host_tool::plan::options::Layout::Preview];
+    let table = lab::scaling::bench_shapes(&scene, &base, args.nodes, &layouts, &args.out)?;
     print!("{table}");
     Ok(())
 }

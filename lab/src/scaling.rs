@@ -2,7 +2,8 @@
 //! nodes it renders one scene on the in-memory board and reports the honest
 //! efficiency E = T(1) / (S x T(S)) in virtual cycles, where T is the frame's
 //! makespan, beside how the nodes' busy cycles split into compute, walk
-//! set-up and messaging.
+//! set-up and messaging. `bench shapes` does the same for every shape of one
+//! number of nodes: how to cable the boards one has.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -42,6 +43,8 @@ impl ScalingConfig {
 /// One run's figures.
 #[derive(Debug, Clone)]
 pub struct ScalingRow {
+    /// Nodes along each axis.
+    pub array: [u16; 3],
     /// Nodes.
     pub nodes: u32,
     /// The first cut.
@@ -96,7 +99,7 @@ pub fn rows(scene: &Scene, cfg: &ScalingConfig) -> Result<Vec<ScalingRow>, HostE
         // One node has one cut: the layouts differ from S = 8 on.
         let layouts = if side == 1 { &cfg.layouts[..1] } else { &cfg.layouts[..] };
         for &layout in layouts {
-            let row = run(scene, cfg, side, layout, one)?;
+            let row = run(scene, &cfg.base, [side; 3], layout, one)?;
             one = one.or(Some((row.makespan, row.busy.total())));
             eprintln!(
                 "S = {:3} {:7}: makespan {:.3e}, E {:.3}, messaging {:.0}%",
@@ -112,27 +115,29 @@ pub fn rows(scene: &Scene, cfg: &ScalingConfig) -> Result<Vec<ScalingRow>, HostE
     Ok(rows)
 }
 
+/// One render of `array` with a static partition cut by `layout`; `one` is
+/// the one-node run's makespan and busy cycles (`None`: this is it).
 fn run(
     scene: &Scene,
-    cfg: &ScalingConfig,
-    side: u16,
+    base: &RenderOptions,
+    array: [u16; 3],
     layout: Layout,
     one: Option<(u64, u64)>,
 ) -> Result<ScalingRow, HostError> {
-    let array = [side; 3];
-    let mut opts = cfg.base;
+    let mut opts = *base;
     opts.array = array;
     opts.sim.array = array;
     opts.layout = layout;
     opts.balance = None;
-    let r = render_sim(scene, &opts)
-        .map_err(|e| e.context(&format!("{side}x{side}x{side} {}", layout.name())))?;
+    let [x, y, z] = array;
+    let r = render_sim(scene, &opts).map_err(|e| e.context(&format!("{x}x{y}x{z} {}", layout.name())))?;
     let busy = r.busy.iter().flatten().copied().sum::<Busy>();
-    let nodes = u32::from(side).pow(3);
+    let nodes = array.iter().map(|&n| u32::from(n)).product::<u32>();
     let makespan = r.frame.makespan.0;
     let host_wire = r.bytes.iter().map(|b| b[6]).max().unwrap_or(0) * opts.sim.host_link.byte_cycles();
     let (t1, busy1) = one.unwrap_or((makespan, busy.total()));
     Ok(ScalingRow {
+        array,
         nodes,
         layout,
         makespan,
@@ -147,12 +152,13 @@ fn run(
 
 fn csv(rows: &[ScalingRow]) -> String {
     let mut s = String::from(
-        "nodes,layout,makespan,efficiency,messaging_share,work_ratio,compute,setup,messaging,neighbour_bytes,host_bytes,host_link_busiest\n",
+        "array,nodes,layout,makespan,efficiency,messaging_share,work_ratio,compute,setup,messaging,neighbour_bytes,host_bytes,host_link_busiest\n",
     );
     for r in rows {
+        let [x, y, z] = r.array;
         let _ = writeln!(
             s,
-            "{},{},{},{:.4},{:.4},{:.3},{},{},{},{},{},{:.3}",
+            "{x}x{y}x{z},{},{},{},{:.4},{:.4},{:.3},{},{},{},{},{},{:.3}",
             r.nodes,
             r.layout.name(),
             r.makespan,
@@ -172,6 +178,11 @@ fn csv(rows: &[ScalingRow]) -> String {
 
 /// The rows as a Markdown table, headed by the links and image they ran with.
 pub fn markdown(cfg: &ScalingConfig, rows: &[ScalingRow]) -> String {
+    table(cfg, rows, false)
+}
+
+/// [`markdown`], the first column each row's node count or (`by_shape`) its array.
+fn table(cfg: &ScalingConfig, rows: &[ScalingRow], by_shape: bool) -> String {
     let o = &cfg.base;
     let mut s = format!(
         "Links: {} (neighbours {} baud, host {} baud, {} cycles a byte on the wire, {} of CPU); \
@@ -189,16 +200,16 @@ pub fn markdown(cfg: &ScalingConfig, rows: &[ScalingRow]) -> String {
          is the share of the makespan its wire was busy (near 100%, pixels waiting to reach the \
          host bound the frame).\n\n",
     );
-    s.push_str(
-        "| S | cut | makespan (cycles) | E | messaging | set-up | compute | work / one node | busiest host link |\n",
-    );
+    s.push_str(if by_shape { "| array " } else { "| S " });
+    s.push_str("| cut | makespan (cycles) | E | messaging | set-up | compute | work / one node | busiest host link |\n");
     s.push_str("|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         let share = |x: u64| 100.0 * x as f64 / r.busy.total().max(1) as f64;
+        let [x, y, z] = r.array;
+        let first = if by_shape { format!("{x}x{y}x{z}") } else { r.nodes.to_string() };
         let _ = writeln!(
             s,
-            "| {} | {} | {:.3e} | {:.3} | {:.0}% | {:.0}% | {:.0}% | {:.2} | {:.0}% |",
-            r.nodes,
+            "| {first} | {} | {:.3e} | {:.3} | {:.0}% | {:.0}% | {:.0}% | {:.2} | {:.0}% |",
             r.layout.name(),
             r.makespan as f64,
             r.efficiency,
@@ -242,4 +253,100 @@ fn chart(cfg: &ScalingConfig, rows: &[ScalingRow]) -> Result<Vec<u8>, HostError>
         900,
         400,
     )
+}
+
+/// Every array of `nodes` nodes, as ordered shapes `[x, y, z]` with
+/// `x * y * z = nodes`, no side longer than the grid's (a node holds at
+/// least one cube a side).
+pub fn shapes(nodes: u32, grid: [u16; 3]) -> Vec<[u16; 3]> {
+    let divisors = |n: u32, most: u16| (1..=n.min(u32::from(most))).filter(move |d| n.is_multiple_of(*d));
+    let mut all = Vec::new();
+    for x in divisors(nodes, grid[0]) {
+        for y in divisors(nodes / x, grid[1]) {
+            let z = nodes / x / y;
+            if let Ok(z) = u16::try_from(z)
+                && z <= grid[2]
+            {
+                all.push([x as u16, y as u16, z]);
+            }
+        }
+    }
+    all
+}
+
+/// `bench shapes`: the one-node run, then every shape of `nodes` nodes
+/// with each of `layouts`, fastest first (the one-node run heads the
+/// table: E is measured against it); writes `shapes.csv` and
+/// `shapes.md` to `out` (both or neither) and returns the Markdown table.
+pub fn bench_shapes(
+    scene: &Scene,
+    base: &RenderOptions,
+    nodes: u32,
+    layouts: &[Layout],
+    out: &Path,
+) -> Result<String, HostError> {
+    if nodes < 2 {
+        return Err(host_tool::error::input(format!(
+            "--nodes {nodes}: the shapes of an array need two nodes or more"
+        )));
+    }
+    let arrays = shapes(nodes, scene.grid);
+    if arrays.is_empty() {
+        let [x, y, z] = scene.grid;
+        return Err(host_tool::error::input(format!(
+            "--nodes {nodes}: no array of {nodes} nodes fits the {x}x{y}x{z} grid (a node needs a cube a side)"
+        )));
+    }
+    let files = crate::outputs(out, ["shapes.csv", "shapes.md"])?;
+    let first = run(scene, base, [1; 3], Layout::Even, None)?;
+    let one = Some((first.makespan, first.busy.total()));
+    let mut rows = Vec::new();
+    for &array in &arrays {
+        for &layout in layouts {
+            let row = run(scene, base, array, layout, one)?;
+            let [x, y, z] = array;
+            eprintln!(
+                "{x}x{y}x{z} {:7}: makespan {:.3e}, E {:.3}, messaging {:.0}%",
+                layout.name(),
+                row.makespan as f64,
+                row.efficiency,
+                100.0 * row.messaging_share()
+            );
+            rows.push(row);
+        }
+    }
+    rows.sort_by_key(|r| r.makespan);
+    rows.insert(0, first);
+    let cfg = ScalingConfig { sides: vec![], layouts: layouts.to_vec(), base: *base };
+    let mut table = format!("Every shape of {nodes} nodes, fastest first. ");
+    table.push_str(&self::table(&cfg, &rows, true));
+    let [csv_path, md_path] = &files;
+    write_all_atomic(&[(csv_path, csv(&rows).as_bytes()), (md_path, table.as_bytes())])?;
+    Ok(table)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::shapes;
+
+    #[test]
+    fn shapes_are_every_ordered_factorisation_that_fits() {
+        // 64 = 2^6 in three ordered factors: C(8, 2) = 28 ways; on a 32^3
+        // grid the three with a side of 64 go.
+        assert_eq!(shapes(64, [32; 3]).len(), 25);
+        let all = shapes(64, [64; 3]);
+        assert_eq!(all.len(), 28);
+        assert!(all.iter().all(|s| s.iter().map(|&n| u32::from(n)).product::<u32>() == 64));
+        let mut unique = all.clone();
+        unique.sort_unstable();
+        unique.dedup();
+        assert_eq!(unique.len(), 28);
+        // 12 = 2^2 x 3: C(4, 2) x C(3, 2) = 18 ways.
+        assert_eq!(shapes(12, [32; 3]).len(), 18);
+        let narrow = shapes(12, [4, 32, 32]);
+        assert!(narrow.iter().all(|s| s[0] <= 4));
+        // x = 6: (1, 2) and (2, 1); x = 12: (1, 1): three shapes fewer.
+        assert_eq!(narrow.len(), 15);
+        assert_eq!(shapes(7, [4; 3]), Vec::<[u16; 3]>::new(), "7 nodes cannot fit sides of 4");
+    }
 }
