@@ -114,6 +114,35 @@ pub enum TransferChoice {
     Dma,
 }
 
+/// `--driving-axis`: which axis the boundaries slide along and the preview
+/// fit's rows run along.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum AxisChoice {
+    /// The axis along which the sphere counts of the node layers vary most (the paper's rule).
+    Auto,
+    /// The axis most aligned with the camera's view direction.
+    View,
+    /// x.
+    X,
+    /// y.
+    Y,
+    /// z.
+    Z,
+}
+
+impl AxisChoice {
+    /// The axis for `scene`, or `None` for the paper's rule (the plan applies it).
+    pub fn resolve(self, scene: &Scene) -> Option<u8> {
+        match self {
+            AxisChoice::Auto => None,
+            AxisChoice::View => Some(crate::plan::partition::view_axis(scene)),
+            AxisChoice::X => Some(0),
+            AxisChoice::Y => Some(1),
+            AxisChoice::Z => Some(2),
+        }
+    }
+}
+
 /// Help and version go to stdout as clap writes them. A usage error leads
 /// with the one line that says what is wrong, then clap's tip and its pointer
 /// to `--help`, without the usage block and blank lines between; exit 2.

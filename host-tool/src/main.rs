@@ -5,8 +5,8 @@ use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use host_tool::args::{
-    LinkArgs, SceneArgs, load_scene, load_scene_for, node_timeout, parse_faults, parse_triple, scene_source,
-    usage_error,
+    AxisChoice, LinkArgs, SceneArgs, load_scene, load_scene_for, node_timeout, parse_faults, parse_triple,
+    scene_source, usage_error,
 };
 use host_tool::compare::compare;
 use host_tool::error::{HostError, input};
@@ -99,20 +99,6 @@ enum PolicyChoice {
     Paper,
     /// Proportional to the running-time difference, under-relaxed, capped, with a dead band.
     Proportional,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum AxisChoice {
-    /// The axis along which the sphere counts of the node layers vary most (the paper's rule).
-    Auto,
-    /// The axis most aligned with the camera's view direction.
-    View,
-    /// x.
-    X,
-    /// y.
-    Y,
-    /// z.
-    Z,
 }
 
 #[derive(Args)]
@@ -356,13 +342,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
     opts.sim.faults = args.faults;
     opts.sim.restart = args.restart_node;
     opts.sim.watchdog = args.watchdog;
-    opts.driving_axis = match args.driving_axis {
-        AxisChoice::Auto => None,
-        AxisChoice::View => Some(host_tool::plan::partition::view_axis(&scene)),
-        AxisChoice::X => Some(0),
-        AxisChoice::Y => Some(1),
-        AxisChoice::Z => Some(2),
-    };
+    opts.driving_axis = args.driving_axis.resolve(&scene);
     if let BalanceMode::Slide = args.balance {
         if args.interval == 0 {
             return Err(input("--interval must be at least 1 cycle"));

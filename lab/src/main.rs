@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use host_tool::args::{LinkArgs, SceneArgs, load_scene, parse_faults, parse_triple, usage_error};
+use host_tool::args::{AxisChoice, LinkArgs, SceneArgs, load_scene, parse_faults, parse_triple, usage_error};
 use host_tool::error::{HostError, input};
 use host_tool::plan::direct;
 use host_tool::plan::options::RenderOptions;
@@ -159,6 +159,9 @@ struct ShapesArgs {
     /// Nodes in the array: every X x Y x Z of this many is run.
     #[arg(long, value_name = "S", default_value_t = 64)]
     nodes: u32,
+    /// Driving axis of each partition (the preview fit's rows run along it).
+    #[arg(long, value_enum, default_value = "auto")]
+    driving_axis: AxisChoice,
     /// Output directory.
     #[arg(long, value_name = "DIR", default_value = "shapes")]
     out: PathBuf,
@@ -170,6 +173,9 @@ struct ScalingArgs {
     scene: SceneArgs,
     #[command(flatten)]
     links: LinkArgs,
+    /// Driving axis of each partition (the preview fit's rows run along it).
+    #[arg(long, value_enum, default_value = "auto")]
+    driving_axis: AxisChoice,
     /// Output directory.
     #[arg(long, value_name = "DIR", default_value = "scaling")]
     out: PathBuf,
@@ -386,6 +392,7 @@ fn bench_scaling(args: ScalingArgs) -> Result<(), HostError> {
     let mut base = RenderOptions::new([1, 1, 1]);
     base.size = scene_args.size;
     args.links.apply(&mut base)?;
+    base.driving_axis = args.driving_axis.resolve(&scene);
     let cfg = if args.quick {
         lab::scaling::ScalingConfig::quick(base)
     } else {
@@ -402,6 +409,7 @@ fn bench_shapes(args: ShapesArgs) -> Result<(), HostError> {
     let mut base = RenderOptions::new([1, 1, 1]);
     base.size = scene_args.size;
     args.links.apply(&mut base)?;
+    base.driving_axis = args.driving_axis.resolve(&scene);
     let layouts = [host_tool::plan::options::Layout::Even, host_tool::plan::options::Layout::Preview];
     let table = lab::scaling::bench_shapes(&scene, &base, args.nodes, &layouts, &args.out)?;
     print!("{table}");
