@@ -407,7 +407,8 @@ fn retirements(timer: &mut Timer, rays: &[RayMsg], per: usize) -> (u64, u64) {
 fn frame_parts(timer: &mut Timer, rays: &[RayMsg]) -> [(&'static str, u64, u64); 6] {
     let mut buf = [0u8; MAX_FRAME_LEN];
     let mut work = [0u8; MAX_FRAME_LEN];
-    let (mut decoder, mut into) = (link_proto::FrameDecoder::new(), link_proto::Frame::new(0, Message::Space));
+    let (mut decoder, mut into) =
+        (link_proto::FrameDecoder::new(), link_proto::Frame::new(0, Message::Space));
     let (mut encode, mut decode, mut crc, mut cobs_enc, mut cobs_dec, mut bytes) = (0, 0, 0, 0, 0, 0);
     let mut n = 0u64;
     for round in 0..20u8 {
