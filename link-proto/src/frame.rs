@@ -174,7 +174,7 @@ impl FrameDecoder {
     /// [`FrameDecoder::decode`], writing the frame into `out` (left as it
     /// was on an error): a frame is as large as a ray with its hit, and
     /// handed back by value it was copied at each return on its way to the
-    /// channel, a fifth of a received ray's instructions on a Cortex-M3.
+    /// channel (on a Cortex-M3, 37 instructions of each end of a hop).
     pub fn decode_into(&mut self, bytes: &mut &[u8], out: &mut Frame) -> Option<Result<(), DecodeError>> {
         while !bytes.is_empty() {
             let (run, closed, rest) = match cobs::first_zero(bytes) {
