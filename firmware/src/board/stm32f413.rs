@@ -193,10 +193,15 @@ impl Uart {
 }
 
 /// A UART's interrupt: every byte it holds into the receive ring, and
-/// bytes from the transmit ring while it takes them.
+/// bytes from the transmit ring while it takes them. The transmit side only
+/// while its interrupt is on (the loop turns it on with every byte it
+/// queues): a received byte's interrupt then costs one read of CR1, where
+/// going through `transmit` read SR again and rewrote CR1 each time.
 fn service(regs: Regs, rings: &Rings) {
     receive(regs, &rings.rx);
-    transmit(regs, &rings.tx);
+    if with_regs!(regs, r => r.cr1().read().txeie().bit_is_set()) {
+        transmit(regs, &rings.tx);
+    }
 }
 
 /// Reading SR then DR takes the byte and clears an overrun; an overrun
