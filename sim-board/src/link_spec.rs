@@ -28,9 +28,15 @@ impl Transfer {
     /// CPU cycles per byte moved.
     ///
     /// - Interrupt: 12 cycles to enter and 10 to leave a handler (Cortex-M3
-    ///   and M4 without floating-point context, ARM's TRMs), and a handler of
-    ///   about 28 instructions that reads the status and data registers and
-    ///   puts the byte in a ring: 50.
+    ///   and M4 without floating-point context, ARM's TRMs), and the STM32
+    ///   firmware's handler, counted instruction by instruction on its path
+    ///   in the stm32f413 image's disassembly (`scripts/firmware.sh` builds
+    ///   it): 45 instructions for a byte received (the handler's entry, the
+    ///   status and data registers read, the byte into the ring, the status
+    ///   read again, the transmit interrupt found off) and 51 for a byte
+    ///   sent; 67 and 73 cycles with the exception, 70 at each end. A lower
+    ///   bound: the peripheral bus's wait states, and the loop's moving of
+    ///   each byte between ring and channel, are not counted.
     /// - Polled: the same register reads and ring update without the
     ///   exception: 16. (The loop must come round once per byte; a long walk
     ///   between passes delays bytes, which this model does not charge.)
@@ -41,7 +47,7 @@ impl Transfer {
     pub const fn cycles_per_byte(self) -> u64 {
         match self {
             Transfer::Polled => 16,
-            Transfer::Interrupt => 50,
+            Transfer::Interrupt => 70,
             Transfer::Dma => 0,
         }
     }

@@ -462,12 +462,12 @@ fn link_presets_change_time_not_the_image() {
     let (ideal_busy, dma_busy, irq_busy) = (sum(&ideal), sum(&dma), sum(&irq));
     assert_eq!((ideal_busy.compute, ideal_busy.setup), (irq_busy.compute, irq_busy.setup));
     // Which rays go on grants depends on timing, so the messages differ a
-    // little between links; an interrupt a byte adds 50 cycles at each end
+    // little between links; an interrupt a byte adds its cycles at each end
     // of every byte, sent or taken in. And the f413 host link holds eight
     // frames, so retirements may wait longer and travel more together
     // there: at most every retirement message of the ideal links is saved.
     let moved: u64 = irq.bytes.iter().chain(&irq.bytes_in).flatten().sum();
-    let handling = irq_busy.messaging - 50 * moved;
+    let handling = irq_busy.messaging - Transfer::Interrupt.cycles_per_byte() * moved;
     let cost = sim_board::CostModel::default();
     let retirements = ideal.frame.rays_terminated * cost.retire_message;
     for (name, m) in [("dma", dma_busy.messaging), ("irq less its bytes", handling)] {
