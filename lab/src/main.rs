@@ -386,13 +386,24 @@ fn soak(args: SoakArgs) -> Result<(), HostError> {
     }
 }
 
-fn bench_scaling(args: ScalingArgs) -> Result<(), HostError> {
-    let scene_args = paper_scene(&args.scene);
+/// The scene (the paper's unless given) and the options every run of a
+/// scaling benchmark shares; each run sets its own array.
+fn scaling_base(
+    scene: &SceneArgs,
+    links: &LinkArgs,
+    axis: AxisChoice,
+) -> Result<(host_tool::scene::Scene, RenderOptions), HostError> {
+    let scene_args = paper_scene(scene);
     let scene = load_scene(&scene_args)?;
     let mut base = RenderOptions::new([1, 1, 1]);
     base.size = scene_args.size;
-    args.links.apply(&mut base)?;
-    base.driving_axis = args.driving_axis.resolve(&scene);
+    links.apply(&mut base)?;
+    base.driving_axis = axis.resolve(&scene);
+    Ok((scene, base))
+}
+
+fn bench_scaling(args: ScalingArgs) -> Result<(), HostError> {
+    let (scene, base) = scaling_base(&args.scene, &args.links, args.driving_axis)?;
     let cfg = if args.quick {
         lab::scaling::ScalingConfig::quick(base)
     } else {
@@ -404,12 +415,7 @@ fn bench_scaling(args: ScalingArgs) -> Result<(), HostError> {
 }
 
 fn bench_shapes(args: ShapesArgs) -> Result<(), HostError> {
-    let scene_args = paper_scene(&args.scene);
-    let scene = load_scene(&scene_args)?;
-    let mut base = RenderOptions::new([1, 1, 1]);
-    base.size = scene_args.size;
-    args.links.apply(&mut base)?;
-    base.driving_axis = args.driving_axis.resolve(&scene);
+    let (scene, base) = scaling_base(&args.scene, &args.links, args.driving_axis)?;
     let layouts = [host_tool::plan::options::Layout::Even, host_tool::plan::options::Layout::Preview];
     let table = lab::scaling::bench_shapes(&scene, &base, args.nodes, &layouts, &args.out)?;
     print!("{table}");

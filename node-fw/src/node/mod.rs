@@ -251,35 +251,19 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
     /// kilobytes of initial value take no flash), and a node built on the
     /// stack and moved there would need more stack than the board has.
     pub fn renew(&mut self, id: u16) {
+        // What a new host session resets, then what it keeps: the node's
+        // identity, its cables and board, and storage it only empties.
+        self.start_over();
         self.id = id;
-        self.phase = Phase::Idle;
-        self.header = NO_HEADER;
-        self.grid = Grid::UNIT;
-        self.assign = None;
-        self.region.renew();
-        self.lights.clear();
-        self.spheres_seen = 0;
-        self.render = None;
-        self.cursor = 0;
         self.stride = 1;
+        self.region.renew();
         self.pool.renew();
         for port in &mut self.ports {
             *port = Neighbour::NEW;
         }
-        self.hello_due = true;
         self.session = None;
         self.board = UNNAMED_BOARD;
-        self.error_due = None;
-        self.load_due = None;
-        self.meter = LoadMeter::new();
-        self.totals = Totals::default();
-        self.balance = None;
-        self.intervals = IntervalClock::idle();
-        self.slide = SlideState::new();
-        self.control.clear();
-        self.frames_ended = 0;
         self.health_told = [PortHealth::default(); 7];
-        self.retiring = None;
     }
 
     /// The capacities this node was built with.
