@@ -118,6 +118,13 @@ pub fn first_zero(bytes: &[u8]) -> Option<usize> {
 /// over the first code cost a ray's frame a fifth of its decoding on a
 /// Cortex-M3). Otherwise runs are moved down to `buf[0..]`.
 pub fn decode_slice(buf: &mut [u8]) -> Option<&[u8]> {
+    let (start, len) = decode_in_place(buf)?;
+    buf.get(start..start + len)
+}
+
+/// [`decode_slice`], telling where in `buf` the decoded bytes are: their
+/// start (0 or 1) and length.
+pub fn decode_in_place(buf: &mut [u8]) -> Option<(usize, usize)> {
     if buf.is_empty() {
         return None;
     }
@@ -127,10 +134,9 @@ pub fn decode_slice(buf: &mut [u8]) -> Option<&[u8]> {
             let code = core::mem::replace(buf.get_mut(at)?, 0);
             at += usize::from(code);
         }
-        buf.get(1..)
+        Some((1, buf.len() - 1))
     } else {
-        let n = decode_runs(buf)?;
-        buf.get(..n)
+        Some((0, decode_runs(buf)?))
     }
 }
 

@@ -72,14 +72,79 @@ pub fn encode_frame(frame: &Frame, out: &mut [u8]) -> Result<usize, EncodeError>
 /// hit, which a control frame (an acknowledgement) would copy for nothing.
 pub fn encode_parts(seq: Seq, msg: &Message, ack: Option<Seq>, out: &mut [u8]) -> Result<usize, EncodeError> {
     const SMALL: EncodeError = EncodeError::BufferTooSmall;
-    // out = [0, code, payload.., 0]; the payload may use at most what is left.
-    let room = out.len().saturating_sub(3).min(MAX_PAYLOAD_LEN);
-    let payload = out.get_mut(2..2 + room).ok_or(SMALL)?;
+    let payload = payload_room(out)?;
     let mut body_len = encode_body(seq, msg, payload)?;
     if let Some(ack) = ack {
         let trailer = payload.get_mut(body_len..).ok_or(SMALL)?;
         body_len += postcard::to_slice(&ack, trailer).map_err(|_| SMALL)?.len();
     }
+    seal(out, body_len)
+}
+
+/// Encodes as many of `frames` (sequence numbers and messages, consecutive
+/// from the first) as fit into one frame in `out`, with `ack` riding on it;
+/// returns the bytes written and how many messages went in (at least one,
+/// or an error when there are none).
+///
+/// A batch: `seq ++ [BATCH_TAG, count | BATCH_ACK] ++ [ack] ++ messages`,
+/// each message as it follows the sequence number in a frame of its own.
+/// It pays a frame's delimiters, COBS code, CRC and header once for all its
+/// messages: when rays queue up behind a busy link, they leave together. A
+/// message that goes alone goes as [`encode_parts`] writes it.
+pub fn encode_batch<'m>(
+    frames: impl IntoIterator<Item = (Seq, &'m Message)>,
+    ack: Option<Seq>,
+    out: &mut [u8],
+) -> Result<(usize, usize), EncodeError> {
+    const SMALL: EncodeError = EncodeError::BufferTooSmall;
+    let mut frames = frames.into_iter();
+    let (first, msg) = frames.next().ok_or(SMALL)?;
+    let payload = payload_room(out)?;
+    let limit = payload.len().saturating_sub(CRC_LEN);
+    let head_len = if ack.is_some() { 4 } else { 3 };
+    let Some(Ok(first_len)) = payload.get_mut(head_len..limit).map(|room| encode_message(msg, room)) else {
+        // Too large to share a frame.
+        return Ok((encode_parts(first, msg, ack, out)?, 1));
+    };
+    let (mut len, mut count) = (head_len + first_len, 1u8);
+    for (seq, msg) in frames {
+        if count >= BATCH_MAX || seq != first.wrapping_add(count) {
+            break;
+        }
+        match payload.get_mut(len..limit).map(|room| encode_message(msg, room)) {
+            Some(Ok(n)) => len += n,
+            _ => break,
+        }
+        count += 1;
+    }
+    if count == 1 {
+        // Alone after all: moved down over the batch's head, as a frame of its own.
+        payload.copy_within(head_len..len, 1);
+        len = 1 + first_len;
+        *payload.first_mut().ok_or(SMALL)? = first;
+        if let Some(ack) = ack {
+            *payload.get_mut(len).ok_or(SMALL)? = ack;
+            len += 1;
+        }
+        return Ok((seal(out, len)?, 1));
+    }
+    let head = [first, BATCH_TAG, count | if ack.is_some() { BATCH_ACK } else { 0 }, ack.unwrap_or(0)];
+    payload.get_mut(..head_len).ok_or(SMALL)?.copy_from_slice(head.get(..head_len).unwrap_or_default());
+    Ok((seal(out, len)?, usize::from(count)))
+}
+
+/// Where a frame's payload goes in `out = [0, code, payload.., 0]`: at most
+/// what is left of `out`, and at most [`MAX_PAYLOAD_LEN`].
+fn payload_room(out: &mut [u8]) -> Result<&mut [u8], EncodeError> {
+    let room = out.len().saturating_sub(3).min(MAX_PAYLOAD_LEN);
+    out.get_mut(2..2 + room).ok_or(EncodeError::BufferTooSmall)
+}
+
+/// Appends the CRC to the `body_len` bytes of body at `out[2..]`, stuffs
+/// them in place and delimits the frame; its length on the wire.
+fn seal(out: &mut [u8], body_len: usize) -> Result<usize, EncodeError> {
+    const SMALL: EncodeError = EncodeError::BufferTooSmall;
+    let payload = payload_room(out)?;
     let crc = checksum(payload.get(..body_len).unwrap_or_default());
     let payload_len = body_len + CRC_LEN;
     payload.get_mut(body_len..payload_len).ok_or(SMALL)?.copy_from_slice(&crc.to_le_bytes());
@@ -103,19 +168,42 @@ const RAY_REPLY_TAG: u8 = 17;
 const SPACE_TAG: u8 = 18;
 const GRANT_TAG: u8 = 23;
 
+/// The tag that starts a batch's body after its first sequence number:
+/// postcard's index of no [`Message`] variant (a test holds it so).
+const BATCH_TAG: u8 = 0x7F;
+/// The batch's count byte has this bit set when an acknowledgement follows it.
+const BATCH_ACK: u8 = 0x80;
+/// Most messages in a batch: its count takes the count byte's other bits.
+const BATCH_MAX: u8 = 0x7F;
+
 /// Writes the frame's body, its postcard serialization (its sequence number,
 /// then its message), at the start of `payload`; its length.
+#[inline(always)]
 fn encode_body(seq: Seq, msg: &Message, payload: &mut [u8]) -> Result<usize, EncodeError> {
     match msg {
         Message::Ray(ray) => encode_ray_body(seq, RAY_TAG, ray, payload),
         Message::GrantedRay(ray) => encode_ray_body(seq, GRANTED_RAY_TAG, ray, payload),
+        // The small messages `decode_payload` reads by hand, written so.
+        Message::Ack(ack) => put_bytes(&[seq, ACK_TAG, *ack], payload),
+        Message::Nak(nak) => put_bytes(&[seq, NAK_TAG, *nak], payload),
+        Message::Space => put_bytes(&[seq, SPACE_TAG], payload),
+        Message::Grant(n @ 0..0x80) => put_bytes(&[seq, GRANT_TAG, *n as u8], payload),
+        Message::RayReply(RayReply { tag: tag @ 0..0x80, accepted }) => {
+            put_bytes(&[seq, RAY_REPLY_TAG, *tag as u8, u8::from(*accepted)], payload)
+        }
         _ => {
-            let seq_len =
-                postcard::to_slice(&seq, &mut *payload).map_err(|_| EncodeError::BufferTooSmall)?.len();
-            let msg_out = payload.get_mut(seq_len..).ok_or(EncodeError::BufferTooSmall)?;
-            Ok(seq_len + postcard::to_slice(msg, msg_out).map_err(|_| EncodeError::BufferTooSmall)?.len())
+            let (head, rest) = payload.split_first_mut().ok_or(EncodeError::BufferTooSmall)?;
+            *head = seq;
+            Ok(1 + postcard::to_slice(msg, rest).map_err(|_| EncodeError::BufferTooSmall)?.len())
         }
     }
+}
+
+/// Writes `bytes` at the start of `payload`; their length.
+#[inline(always)]
+fn put_bytes(bytes: &[u8], payload: &mut [u8]) -> Result<usize, EncodeError> {
+    payload.get_mut(..bytes.len()).ok_or(EncodeError::BufferTooSmall)?.copy_from_slice(bytes);
+    Ok(bytes.len())
 }
 
 /// The body of a frame carrying a ray, written as postcard writes it (the
@@ -132,6 +220,20 @@ fn encode_ray_body(seq: Seq, tag: u8, ray: &RayMsg, payload: &mut [u8]) -> Resul
     Ok(3 + n)
 }
 
+/// Writes `msg` as it follows the sequence number in a frame of its own
+/// (`encode_body`), for a batch; its length.
+fn encode_message(msg: &Message, out: &mut [u8]) -> Result<usize, EncodeError> {
+    let (tag, ray) = match msg {
+        Message::Ray(ray) => (RAY_TAG, ray),
+        Message::GrantedRay(ray) => (GRANTED_RAY_TAG, ray),
+        _ => return Ok(postcard::to_slice(msg, out).map_err(|_| EncodeError::BufferTooSmall)?.len()),
+    };
+    let (head, bytes) = out.split_at_mut_checked(2).ok_or(EncodeError::BufferTooSmall)?;
+    let n = ray_wire::encode_ray(ray, bytes).ok_or(EncodeError::BufferTooSmall)?;
+    head.copy_from_slice(&[tag, n as u8]);
+    Ok(2 + n)
+}
+
 /// Incremental frame decoder with a fixed buffer.
 #[derive(Debug, Clone)]
 pub struct FrameDecoder {
@@ -139,7 +241,26 @@ pub struct FrameDecoder {
     len: usize,
     /// Set after an overflow: drop bytes until the next delimiter.
     discarding: bool,
+    /// The messages of a batch not yet handed out, decoded in `buf`.
+    batch: Batch,
 }
+
+/// What is left of a batch: `left` messages in `buf[at..end]`, the next
+/// with sequence number `seq`. All zero when none is.
+#[derive(Debug, Clone, Copy)]
+struct Batch {
+    seq: Seq,
+    left: u8,
+    at: u8,
+    end: u8,
+}
+
+impl Batch {
+    const NONE: Self = Self { seq: 0, left: 0, at: 0, end: 0 };
+}
+
+// Offsets in the buffer fit a byte.
+const _: () = assert!(MAX_FRAME_LEN <= 255);
 
 impl Default for FrameDecoder {
     fn default() -> Self {
@@ -150,18 +271,18 @@ impl Default for FrameDecoder {
 impl FrameDecoder {
     /// An empty decoder.
     pub const fn new() -> Self {
-        Self { buf: [0; MAX_FRAME_LEN], len: 0, discarding: false }
-    }
-
-    /// Feeds one byte. Returns a result each time a delimiter closes a non-empty frame.
-    pub fn push(&mut self, byte: u8) -> Option<Result<Frame, DecodeError>> {
-        self.decode(&mut &[byte][..])
+        Self { buf: [0; MAX_FRAME_LEN], len: 0, discarding: false, batch: Batch::NONE }
     }
 
     /// Consumes bytes from the front of `bytes` up to the first result: a
     /// frame a delimiter closes, or an overflow. `None` once every byte is
     /// consumed without one. However the bytes are cut into calls, the
-    /// results are the same.
+    /// results are the same. `bytes` keeps what was not read: call again
+    /// until `None`.
+    ///
+    /// A batch of messages gives a frame for each, one a call, before any
+    /// more bytes are read: the first carries the batch's sequence number
+    /// and acknowledgement, each next the next sequence number and none.
     ///
     /// Bytes between delimiters are copied as a block: on a Cortex-M3 this
     /// costs a fraction of pushing them one by one, where every byte returns
@@ -176,6 +297,9 @@ impl FrameDecoder {
     /// handed back by value it was copied at each return on its way to the
     /// channel (on a Cortex-M3, 37 instructions of each end of a hop).
     pub fn decode_into(&mut self, bytes: &mut &[u8], out: &mut Frame) -> Option<Result<(), DecodeError>> {
+        if self.batch.left > 0 {
+            return Some(self.next_of_batch(out));
+        }
         while !bytes.is_empty() {
             let (run, closed, rest) = match cobs::first_zero(bytes) {
                 Some(at) => {
@@ -218,10 +342,11 @@ impl FrameDecoder {
         }
     }
 
-    /// Drops any partial frame, as after a link reset.
+    /// Drops any partial frame and what is left of a batch, as after a link reset.
     pub fn reset(&mut self) {
         self.len = 0;
         self.discarding = false;
+        self.batch = Batch::NONE;
     }
 
     fn close(&mut self, out: &mut Frame) -> Option<Result<(), DecodeError>> {
@@ -230,14 +355,35 @@ impl FrameDecoder {
             return None;
         }
         let encoded = self.buf.get_mut(..len)?;
-        Some(decode_payload(encoded, out))
+        Some(decode_payload(encoded, out).map(|batch| self.batch = batch))
+    }
+
+    /// The next message of the batch in the buffer, into `out`. Out of line:
+    /// every call of `decode_into` asks, few find a batch.
+    #[inline(never)]
+    fn next_of_batch(&mut self, out: &mut Frame) -> Result<(), DecodeError> {
+        let Batch { seq, left, at, end } = core::mem::replace(&mut self.batch, Batch::NONE);
+        let bytes = self.buf.get(usize::from(at)..usize::from(end)).ok_or(DecodeError::Body)?;
+        let left = left.saturating_sub(1);
+        let rest = decode_message(bytes, &mut out.msg, left)?;
+        (out.seq, out.ack) = (seq, None);
+        if left > 0 {
+            self.batch = Batch { seq: seq.wrapping_add(1), left, at: end.saturating_sub(rest), end };
+        }
+        Ok(())
     }
 }
 
 /// Decodes one COBS payload (delimiters stripped) in place, into `out`
-/// (untouched on an error).
-fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<(), DecodeError> {
-    let payload = cobs::decode_slice(encoded).ok_or(DecodeError::Cobs)?;
+/// (untouched on an error): a frame's message, or a batch's first; then
+/// what is left of the batch.
+///
+/// Out of line: inlined into `close`, the message was built aside and
+/// copied into `out` (60 instructions a frame on a Cortex-M3).
+#[inline(never)]
+fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<Batch, DecodeError> {
+    let (start, len) = cobs::decode_in_place(encoded).ok_or(DecodeError::Cobs)?;
+    let payload = encoded.get(start..start + len).ok_or(DecodeError::Cobs)?;
     let body_len = payload.len().checked_sub(CRC_LEN).ok_or(DecodeError::Short)?;
     let (body, crc) = payload.split_at(body_len);
     let mut crc_bytes = [0u8; CRC_LEN];
@@ -245,7 +391,7 @@ fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<(), DecodeError
     if checksum(body) != u32::from_le_bytes(crc_bytes) {
         return Err(DecodeError::Crc);
     }
-    let (seq, msg, trailer) = match body {
+    match body {
         // A ray, read as `encode_ray_body` writes it: no serde dispatch,
         // and written straight into `out`.
         [seq, tag @ (RAY_TAG | GRANTED_RAY_TAG), len @ 0..0x80, rest @ ..] => {
@@ -254,19 +400,25 @@ fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<(), DecodeError
             let ray = ray_wire::decode_ray(bytes).ok_or(DecodeError::Body)?;
             out.msg = if *tag == RAY_TAG { Message::Ray(ray) } else { Message::GrantedRay(ray) };
             (out.seq, out.ack) = (*seq, ack);
-            return Ok(());
+            Ok(Batch::NONE)
+        }
+        [seq, BATCH_TAG, head, rest @ ..] => {
+            // Offsets in the buffer: the body starts at `start`.
+            let end = u8::try_from(start + body_len).map_err(|_| DecodeError::Body)?;
+            decode_batch(*seq, *head, rest, end, out)
         }
         // The small messages a link carries most, read as postcard writes
         // them (a grant or a reply's tag under 128 is one varint byte, a
         // bool a byte 0 or 1): through serde's dispatch each cost a hundred
         // and more instructions to build.
-        [seq, ACK_TAG, ack, trailer @ ..] => (*seq, Message::Ack(*ack), trailer),
-        [seq, NAK_TAG, nak, trailer @ ..] => (*seq, Message::Nak(*nak), trailer),
-        [seq, SPACE_TAG, trailer @ ..] => (*seq, Message::Space, trailer),
+        [seq, ACK_TAG, ack, trailer @ ..] => put(out, *seq, Message::Ack(*ack), trailer),
+        [seq, NAK_TAG, nak, trailer @ ..] => put(out, *seq, Message::Nak(*nak), trailer),
+        [seq, SPACE_TAG, trailer @ ..] => put(out, *seq, Message::Space, trailer),
         [seq, RAY_REPLY_TAG, tag @ 0..0x80, accepted @ 0..=1, trailer @ ..] => {
-            (*seq, Message::RayReply(RayReply { tag: u16::from(*tag), accepted: *accepted == 1 }), trailer)
+            let reply = RayReply { tag: u16::from(*tag), accepted: *accepted == 1 };
+            put(out, *seq, Message::RayReply(reply), trailer)
         }
-        [seq, GRANT_TAG, n @ 0..0x80, trailer @ ..] => (*seq, Message::Grant(u16::from(*n)), trailer),
+        [seq, GRANT_TAG, n @ 0..0x80, trailer @ ..] => put(out, *seq, Message::Grant(u16::from(*n)), trailer),
         _ => {
             // Straight from the deserializer: `take_from_bytes` moves the frame
             // through two more temporaries, each a byte-wise copy on a Cortex-M. And
@@ -276,12 +428,62 @@ fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<(), DecodeError
             let mut de = postcard::Deserializer::from_bytes(body);
             let seq = Seq::deserialize(&mut de).map_err(|_| DecodeError::Body)?;
             let msg = Message::deserialize(&mut de).map_err(|_| DecodeError::Body)?;
-            (seq, msg, de.finalize().map_err(|_| DecodeError::Body)?)
+            let trailer = de.finalize().map_err(|_| DecodeError::Body)?;
+            put(out, seq, msg, trailer)
         }
-    };
+    }
+}
+
+/// Writes the frame of `seq`, `msg` and the acknowledgement `trailer` holds
+/// into `out`, if it holds one or none. Inlined, so that a small message is
+/// written in place rather than built aside, as large as a ray, and copied.
+#[inline(always)]
+fn put(out: &mut Frame, seq: Seq, msg: Message, trailer: &[u8]) -> Result<Batch, DecodeError> {
     let ack = decode_trailer(trailer)?;
     *out = Frame { seq, msg, ack };
-    Ok(())
+    Ok(Batch::NONE)
+}
+
+/// A batch's head (`head`: its count and whether an acknowledgement
+/// follows) and first message into `out`, from `rest`, the bytes after the
+/// head up to `end`; what is left of it.
+fn decode_batch(seq: Seq, head: u8, rest: &[u8], end: u8, out: &mut Frame) -> Result<Batch, DecodeError> {
+    let (count, ack, messages) = match (head & !BATCH_ACK, head & BATCH_ACK != 0, rest) {
+        (0, _, _) | (_, true, []) => return Err(DecodeError::Body),
+        (count, false, messages) => (count, None, messages),
+        (count, true, [ack, messages @ ..]) => (count, Some(*ack), messages),
+    };
+    let left = count - 1;
+    let rest = decode_message(messages, &mut out.msg, left)?;
+    (out.seq, out.ack) = (seq, ack);
+    Ok(if left > 0 {
+        Batch { seq: seq.wrapping_add(1), left, at: end.saturating_sub(rest), end }
+    } else {
+        Batch::NONE
+    })
+}
+
+/// Decodes a batch's message at the start of `bytes` into `out` (left as it
+/// was on an error); `left` more follow it, and the last must end the
+/// batch. How many bytes follow it.
+fn decode_message(bytes: &[u8], out: &mut Message, left: u8) -> Result<u8, DecodeError> {
+    let rest = |after: &[u8]| match (left, after.len()) {
+        (0, 0) => Ok(0),
+        (0, _) => Err(DecodeError::Body),
+        // Within a buffer of at most 255 bytes.
+        (_, n) => u8::try_from(n).map_err(|_| DecodeError::Body),
+    };
+    if let [tag @ (RAY_TAG | GRANTED_RAY_TAG), len @ 0..0x80, tail @ ..] = bytes {
+        let (ray, after) = tail.split_at_checked(usize::from(*len)).ok_or(DecodeError::Body)?;
+        let n = rest(after)?;
+        let ray = ray_wire::decode_ray(ray).ok_or(DecodeError::Body)?;
+        *out = if *tag == RAY_TAG { Message::Ray(ray) } else { Message::GrantedRay(ray) };
+        return Ok(n);
+    }
+    let (msg, after) = postcard::take_from_bytes::<Message>(bytes).map_err(|_| DecodeError::Body)?;
+    let n = rest(after)?;
+    *out = msg;
+    Ok(n)
 }
 
 /// The acknowledgement trailer, if any: it must fill `trailer` exactly.
@@ -294,5 +496,19 @@ fn decode_ack(trailer: &[u8]) -> Result<Seq, DecodeError> {
     match postcard::take_from_bytes::<Seq>(trailer) {
         Ok((ack, [])) => Ok(ack),
         _ => Err(DecodeError::Body),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::BATCH_TAG;
+    use crate::message::Message;
+
+    #[test]
+    fn the_batch_tag_is_no_messages() {
+        // postcard would read it as a variant index: there must be none.
+        for next in [0u8, 1, 0x7F, 0xFF] {
+            assert!(postcard::from_bytes::<Message>(&[BATCH_TAG, next, 0, 0]).is_err());
+        }
     }
 }

@@ -31,7 +31,8 @@ pub mod site;
 
 pub use board::{BoardId, BoardInfo, BoardKind, ClockSource, FirmwareVersion, PeerNote};
 pub use frame::{
-    DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_PAYLOAD_LEN, encode_frame, encode_parts,
+    DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_PAYLOAD_LEN, encode_batch, encode_frame,
+    encode_parts,
 };
 pub use health::{LinkHealth, PortHealth};
 pub use message::*;
@@ -39,4 +40,4 @@ pub use site::{Found, Site};
 
 /// Version of the wire protocol; nodes and host exchange it in [`Hello`].
 /// Bump it whenever a message changes shape (postcard carries no field names).
-pub const PROTOCOL_VERSION: u16 = 20;
+pub const PROTOCOL_VERSION: u16 = 21;

@@ -148,6 +148,7 @@ fn three_bytes(v: u32) -> [u8; 3] {
 
 /// Packs `ray` into `out`; the length written, or `None` if `out` is shorter
 /// than the ray needs ([`RAY_MAX_LEN`] always suffices).
+#[inline(always)]
 pub fn encode_ray(ray: &RayMsg, out: &mut [u8]) -> Option<usize> {
     let credit = credit::Form::of(ray.credit);
     let [flags, forms] = flags_of(ray, credit);

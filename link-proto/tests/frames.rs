@@ -4,7 +4,15 @@ use link_proto::*;
 use proptest::prelude::*;
 
 fn decode_all(dec: &mut FrameDecoder, bytes: &[u8]) -> Vec<Result<Frame, DecodeError>> {
-    bytes.iter().filter_map(|&b| dec.push(b)).collect()
+    // A byte at a time, every result each leads to.
+    let mut results = Vec::new();
+    for b in bytes {
+        let mut byte = std::slice::from_ref(b);
+        while let Some(r) = dec.decode(&mut byte) {
+            results.push(r);
+        }
+    }
+    results
 }
 
 fn encode(frame: &Frame) -> Vec<u8> {
@@ -484,6 +492,116 @@ fn a_sequence_number_and_an_acknowledgement_take_a_byte_each_whatever_their_valu
     }
     let bare = encode(&Frame::new(Seq::MAX, ray)).len();
     assert_eq!(small, bare + 1, "the acknowledgement trailer is one byte");
+}
+
+/// `msgs` numbered from `seq`, as a channel's window holds them.
+fn numbered(seq: Seq, msgs: &[Message]) -> Vec<(Seq, &Message)> {
+    msgs.iter().enumerate().map(|(i, m)| (seq.wrapping_add(i as u8), m)).collect()
+}
+
+/// The frames a batch of `msgs` from `seq` should decode to.
+fn batch_frames(seq: Seq, msgs: &[Message], ack: Option<Seq>) -> Vec<Result<Frame, DecodeError>> {
+    numbered(seq, msgs)
+        .into_iter()
+        .enumerate()
+        .map(|(i, (seq, msg))| Ok(Frame { seq, msg: msg.clone(), ack: if i == 0 { ack } else { None } }))
+        .collect()
+}
+
+fn postcard_len(msg: &Message) -> usize {
+    postcard::to_slice(msg, &mut [0u8; 512]).unwrap().len()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(500))]
+
+    /// A batch is `seq ++ [0x7F, count | 0x80 if acked] ++ [ack] ++` the
+    /// messages as postcard writes them, under the CRC; it takes as many
+    /// messages as fit in a frame, at least one, and decodes to each in
+    /// turn, numbered on from `seq`, the acknowledgement on the first.
+    #[test]
+    fn a_batch_is_its_messages_one_after_another(
+        seq in any::<Seq>(),
+        msgs in proptest::collection::vec(arb_message(), 1..10),
+        rays in proptest::collection::vec(arb_ray(), 0..6),
+        ack in any::<Option<Seq>>(),
+    ) {
+        let msgs: Vec<Message> = msgs.into_iter().chain(rays.into_iter().map(Message::GrantedRay)).collect();
+        let mut out = [0u8; MAX_FRAME_LEN];
+        let (n, taken) = encode_batch(numbered(seq, &msgs), ack, &mut out).unwrap();
+        let head = 3 + usize::from(ack.is_some());
+        let sizes: Vec<usize> = msgs.iter().map(postcard_len).collect();
+        let used: usize = head + sizes[..taken].iter().sum::<usize>() + 4;
+        prop_assert!(taken >= 1 && (taken == 1 || used <= MAX_PAYLOAD_LEN));
+        if let Some(next) = sizes.get(taken) {
+            prop_assert!(taken == 127 || used + next > MAX_PAYLOAD_LEN, "room for another");
+        }
+        if taken == 1 {
+            // Alone, a message goes in a frame of its own.
+            prop_assert_eq!(&out[..n], &encode(&Frame { seq, msg: msgs[0].clone(), ack })[..]);
+        } else {
+            let mut body = vec![seq, 0x7F, taken as u8 | if ack.is_some() { 0x80 } else { 0 }];
+            body.extend(ack);
+            for m in &msgs[..taken] {
+                body.extend_from_slice(postcard::to_slice(m, &mut [0u8; 512]).unwrap());
+            }
+            prop_assert_eq!(&out[..n], &payload_frame(&body, &[])[..]);
+        }
+        prop_assert_eq!(decode_all(&mut FrameDecoder::new(), &out[..n]), batch_frames(seq, &msgs[..taken], ack));
+    }
+
+    /// A batch with any byte damaged hands out none of its messages, and
+    /// the frame after it decodes intact.
+    #[test]
+    fn a_damaged_batch_gives_no_message(
+        msgs in proptest::collection::vec(arb_message(), 2..5),
+        flip in 1u8..=255,
+        at in any::<prop::sample::Index>(),
+        next in arb_frame(),
+    ) {
+        let mut out = [0u8; MAX_FRAME_LEN];
+        let (n, _) = encode_batch(numbered(200, &msgs), Some(3), &mut out).unwrap();
+        let mut bytes = out[..n].to_vec();
+        let i = 1 + at.index(n - 2);
+        bytes[i] ^= flip;
+        bytes.extend(encode(&next));
+        let got = decode_all(&mut FrameDecoder::new(), &bytes);
+        prop_assert_eq!(got.last(), Some(&Ok(next)));
+        prop_assert!(got[..got.len() - 1].iter().all(Result::is_err), "{:?}", got);
+    }
+}
+
+#[test]
+fn a_batch_ends_at_a_gap_in_sequence_numbers() {
+    let msgs = [Message::Space, Message::Grant(3), Message::Space];
+    let frames = [(4, &msgs[0]), (5, &msgs[1]), (7, &msgs[2])];
+    let mut out = [0u8; MAX_FRAME_LEN];
+    let (n, taken) = encode_batch(frames, None, &mut out).unwrap();
+    assert_eq!(taken, 2);
+    assert_eq!(decode_all(&mut FrameDecoder::new(), &out[..n]), batch_frames(4, &msgs[..2], None));
+    // Nothing to send is an error, not an empty frame.
+    assert_eq!(encode_batch([], None, &mut out), Err(EncodeError::BufferTooSmall));
+}
+
+#[test]
+fn a_batch_whose_count_disagrees_with_its_messages_is_refused() {
+    let space = postcard::to_slice(&Message::Space, &mut [0u8; 4]).unwrap().to_vec();
+    let batch = |count: u8, messages: usize| {
+        let mut body = vec![9, 0x7F, count];
+        (0..messages).for_each(|_| body.extend_from_slice(&space));
+        decode_all(&mut FrameDecoder::new(), &payload_frame(&body, &[]))
+    };
+    let first = Ok(Frame::new(9, Message::Space));
+    // One message short: those there are handed out, then the gap refused.
+    assert_eq!(batch(3, 2), vec![first.clone(), Ok(Frame::new(10, Message::Space)), Err(DecodeError::Body)]);
+    // Bytes after the last message, and an empty batch.
+    assert_eq!(batch(1, 2), vec![Err(DecodeError::Body)]);
+    assert_eq!(batch(0, 1), vec![Err(DecodeError::Body)]);
+    // An acknowledgement flagged but missing.
+    assert_eq!(
+        decode_all(&mut FrameDecoder::new(), &payload_frame(&[9, 0x7F, 0x81], &[])),
+        vec![Err(DecodeError::Body)]
+    );
 }
 
 /// A frame's payload (COBS input) built by hand: `body ++ trailer ++ crc`.
