@@ -25,8 +25,8 @@
 
 use heapless::Deque;
 use link_proto::{
-    DecodeError, Frame, FrameDecoder, MAX_FRAME_LEN, Message, PROTOCOL_VERSION, Seq, encode_frame,
-    encode_parts,
+    DecodeError, EncodeError, Frame, FrameDecoder, MAX_FRAME_LEN, Message, PROTOCOL_VERSION, Seq,
+    encode_batch, encode_parts,
 };
 
 /// Sequence numbers wrap at 2^8; a window is far smaller (see
@@ -387,26 +387,37 @@ impl<const W: usize> Channel<W> {
             self.announce(now, buf, &mut write);
             return;
         }
-        while let Some(frame) = self.unacked.iter_mut().nth(self.resend_from) {
+        while self.resend_from < self.unacked.len() {
             // Set afresh on every write: an ack from an earlier write may
             // belong to a peer incarnation that has since restarted.
-            frame.ack = match self.control_due {
+            let ack = match self.control_due {
                 Owed::Ack(seq) => Some(seq),
                 Owed::Nothing | Owed::Nak(_) => None,
             };
-            let Ok(n) = encode_frame(frame, buf) else { break };
+            let Ok((n, sent)) = self.encode_due(ack, buf) else { break };
             if !write(buf.get(..n).unwrap_or_default()) {
                 break;
             }
-            if frame.ack.is_some() {
+            if ack.is_some() {
                 self.ack_settled();
             }
-            if self.resend_from < self.written {
-                self.stats.retransmitted += 1;
-            }
-            self.resend_from += 1;
+            let again = self.written.saturating_sub(self.resend_from).min(sent);
+            self.stats.retransmitted += again as u32;
+            self.resend_from += sent;
             self.written = self.written.max(self.resend_from);
         }
+    }
+
+    /// Encodes the frames due from `resend_from` into `buf`, `ack` riding on
+    /// them: one alone as it is, several in a batch as many as fit. The
+    /// bytes and the frames they hold.
+    fn encode_due(&self, ack: Option<Seq>, buf: &mut [u8]) -> Result<(usize, usize), EncodeError> {
+        if self.unacked.len() - self.resend_from > 1 {
+            let due = self.unacked.iter().skip(self.resend_from).map(|f| (f.seq, &f.msg));
+            return encode_batch(due, ack, buf);
+        }
+        let frame = self.unacked.iter().nth(self.resend_from).ok_or(EncodeError::BufferTooSmall)?;
+        Ok((encode_parts(frame.seq, &frame.msg, ack, buf)?, 1))
     }
 
     /// Whether an acknowledgement with no data frame to ride on should go in

@@ -251,7 +251,8 @@ fn written(c: &mut Channel<4>, now: u64) -> (Vec<u8>, Vec<link_proto::Frame>) {
         true
     });
     let mut dec = link_proto::FrameDecoder::new();
-    let frames = bytes.iter().filter_map(|&b| dec.push(b)).map(Result::unwrap).collect();
+    let mut rest = &bytes[..];
+    let frames = std::iter::from_fn(|| dec.decode(&mut rest)).map(Result::unwrap).collect();
     (bytes, frames)
 }
 
@@ -370,4 +371,36 @@ fn resends_back_off_while_the_peer_stays_silent_and_recover_on_an_ack() {
     assert!(written(&mut a, again).1.iter().any(|f| f.msg == msg(2)));
     assert!(!written(&mut a, again + 99).1.iter().any(|f| f.msg == msg(2)), "not before the time-out");
     assert!(written(&mut a, again + 100).1.iter().any(|f| f.msg == msg(2)), "resent after one time-out");
+}
+
+#[test]
+fn frames_due_together_leave_in_one_and_a_refused_one_comes_again() {
+    let (mut a, mut b) = pair();
+    let (mut now, mut got_a, mut got_b) = (0, Vec::new(), Vec::new());
+    a.send(msg(0)).unwrap();
+    exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
+    assert!(!a.busy() && !b.busy());
+
+    for k in 1..=3 {
+        a.send(msg(k)).unwrap();
+    }
+    let (bytes, frames) = written(&mut a, now + 1);
+    assert_eq!(bytes.iter().filter(|&&b| b == 0).count(), 2, "one frame, two delimiters");
+    let first = frames[0].seq;
+    let numbered: Vec<_> = frames.iter().map(|f| (f.seq, f.msg.clone())).collect();
+    assert_eq!(numbered, (1..=3).map(|k| (first + k as u8 - 1, msg(k))).collect::<Vec<_>>());
+
+    // B's inbox takes two: the third is not acknowledged, and comes again.
+    let mut room = 2;
+    b.receive(&bytes, |m| {
+        if room == 0 {
+            return false;
+        }
+        room -= 1;
+        got_b.push(m);
+        true
+    });
+    exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
+    assert_eq!(got_b, (0..=3).map(msg).collect::<Vec<_>>(), "each once, in order");
+    assert_eq!(a.stats.retransmitted, 1, "the refused one alone");
 }
