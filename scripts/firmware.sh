@@ -100,6 +100,7 @@ check_cost create "$(model create)"
 check_cost reply "$(model short_message)"
 check_cost hop "$(($(model ray_message) + $(model short_message)))"
 check_cost hop_granted "$(model granted_ray)"
+check_cost hop_batched "$(model batched_ray)"
 check_cost retire "$(model retire_message)"
 # A retirement message with six records (the kernels' RETIRE_BATCH).
 check_cost retire_batch "$(($(model retire_message) + 5 * $(model retire_record)))"

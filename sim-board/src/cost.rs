@@ -21,6 +21,9 @@ pub struct CostModel {
     /// Handling one received or sent ray passed on a grant: no reply, so its
     /// acknowledgement goes alone (one for every half window of rays).
     pub granted_ray: u64,
+    /// Handling one received or sent ray passed on a grant in a batch, the
+    /// frame shared with the rays queued behind a busy link.
+    pub batched_ray: u64,
     /// Handling one received or sent message of any other kind: replies,
     /// space notices and control, a few bytes each.
     pub short_message: u64,
@@ -50,14 +53,15 @@ impl Default for CostModel {
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (four frames on a board): one end of a hop (the ray in
     /// its compact wire form, the reply carrying the ray's ack, the reply's
-    /// ack alone every fourth reply) 1 614.2, and of a ray reply with its ack
-    /// alone every fourth time 649.3, which stands for every short message; a
-    /// ray end is charged the difference, 965 (the UART's bytes are the link
+    /// ack alone every fourth reply) 1 603.5, and of a ray reply with its ack
+    /// alone every fourth time 601.9, which stands for every short message; a
+    /// ray end is charged the difference, 1 002 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every fourth ray) 1 106.2. The rays are half primaries from the eye,
+    /// every fourth ray) 1 109.0; of one in a batch of four in one frame
+    /// 939.1. The rays are half primaries from the eye,
     /// half reflections from inside the grid with half their pixel's credit
     /// (39.0 bytes a frame). A node's end of a retirement (the host's acks
-    /// taken) 1 394.1 with one record, 3 623.8 with six: 446 a further record.
+    /// taken) 1 439.2 with one record, 3 721.8 with six: 457 a further record.
     fn default() -> Self {
         Self {
             cube_step: 109,
@@ -65,17 +69,26 @@ impl Default for CostModel {
             trace: 278,
             shade: 6_941,
             create: 2_785,
-            ray_message: 965,
-            granted_ray: 1_106,
-            short_message: 649,
-            retire_message: 1_394,
-            retire_record: 446,
+            ray_message: 1_002,
+            granted_ray: 1_109,
+            batched_ray: 939,
+            short_message: 602,
+            retire_message: 1_439,
+            retire_record: 457,
             pass: 0,
         }
     }
 }
 
 impl CostModel {
+    /// What a message spares each end by sharing a frame with the messages
+    /// before it: the frame's own handling, from the `hop_batched` kernel's
+    /// four rays to a frame against `hop_granted`'s one (the frame's part
+    /// `f` and a ray's `r` from `f + r = granted_ray`, `f + 4r = 4 batched_ray`).
+    pub fn frame_spared(&self) -> u64 {
+        (4 * self.granted_ray).saturating_sub(4 * self.batched_ray) / 3
+    }
+
     /// Cycles for one poll's work (at least one if anything was done).
     pub fn charge(&self, w: &Work) -> u64 {
         self.split(w).total().max(u64::from(w.is_busy()))
@@ -200,6 +213,16 @@ mod tests {
     }
 
     #[test]
+    fn a_message_sharing_a_frame_spares_the_frames_part() {
+        // One ray alone 1 200, four in one frame 900 each: the frame's part
+        // f and a ray's r solve f + r = 1 200, f + 4 r = 3 600, so f = 400.
+        let c = CostModel { granted_ray: 1_200, batched_ray: 900, ..CostModel::default() };
+        assert_eq!(c.frame_spared(), 400);
+        // A batch that costs more than frames alone spares nothing.
+        assert_eq!(CostModel { batched_ray: 1_300, ..c }.frame_spared(), 0);
+    }
+
+    #[test]
     fn the_split_adds_up_to_the_charge() {
         // Prices of their own, so that the sums below do not follow the
         // measured defaults.
@@ -211,6 +234,7 @@ mod tests {
             create: 2_924,
             ray_message: 1_545,
             granted_ray: 1_872,
+            batched_ray: 1_500,
             short_message: 984,
             retire_message: 1_603,
             retire_record: 462,

@@ -329,6 +329,31 @@ fn granted_hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     (timer.ticks() - start, 2 * passed)
 }
 
+/// Rays queued together on a busy link: [`BATCH`] rays on a grant at a
+/// time through a reliable channel pair, leaving in one frame, and the
+/// receiver's acks as in `granted_hops` (per ray and end, bytes on the UART
+/// not included).
+fn batched_hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
+    let (mut a, mut b) = channel_pair();
+    let mut wire = (heapless::Vec::new(), [0; MAX_FRAME_LEN]);
+    let (mut passed, start) = (0u64, timer.ticks());
+    for round in 0..40u64 {
+        for batch in rays.chunks(BATCH) {
+            for ray in batch {
+                let _ = a.send(Message::GrantedRay(*ray));
+            }
+            pass(&mut a, &mut b, round, &mut wire, |m| core::hint::black_box(m.is_ray()));
+            pass(&mut b, &mut a, round, &mut wire, |_| true);
+            passed += batch.len() as u64;
+        }
+    }
+    (timer.ticks() - start, 2 * passed)
+}
+
+/// Rays in a batch in the `hop_batched` kernel: what a link backed up
+/// behind its wire holds at once, about.
+const BATCH: usize = 4;
+
 /// Passing a reply to each of `rays` through a reliable channel pair, both
 /// ends and the acks, in frames of their own once per half window (per
 /// message and end, bytes on the UART not included).
@@ -554,6 +579,8 @@ fn main() -> ! {
     let _ = writeln!(out, "kernel reply {} {n}", per_unit_x100(ticks, n));
     let (ticks, n) = granted_hops(&mut timer, &rays);
     let _ = writeln!(out, "kernel hop_granted {} {n}", per_unit_x100(ticks, n));
+    let (ticks, n) = batched_hops(&mut timer, &rays);
+    let _ = writeln!(out, "kernel hop_batched {} {n}", per_unit_x100(ticks, n));
     let (ticks, n) = retirements(&mut timer, &rays, 1);
     let _ = writeln!(out, "kernel retire {} {n}", per_unit_x100(ticks, n));
     let (ticks, n) = retirements(&mut timer, &rays, RETIRE_BATCH);
