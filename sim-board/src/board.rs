@@ -276,7 +276,7 @@ impl Board {
         let slot = &mut self.slots[node];
         let at = slot.clock;
         let len = crate::sim_links::frame_len(&msg) as u64;
-        slot.ports[Port::Host.index()].inbox.push_back(Stamped { at, msg, len });
+        slot.ports[Port::Host.index()].inbox.push_back(Stamped { at, msg, len, joined: false });
     }
 
     /// Runs until the host is finished; fails on a stall or a miswired send.
@@ -372,6 +372,8 @@ impl Board {
         for i in 0..self.slots.len() {
             for p in 0..7 {
                 let out = std::mem::take(&mut self.slots[i].ports[p].outbox);
+                // What went to the peer takes no more messages.
+                self.slots[i].ports[p].waiting = None;
                 if out.is_empty() {
                     continue;
                 }

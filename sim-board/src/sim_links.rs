@@ -14,7 +14,27 @@ pub struct Stamped {
     pub msg: Message,
     /// Bytes it takes on the wire.
     pub len: u64,
+    /// It went in a batch with the messages before it, not a frame of its own.
+    pub joined: bool,
 }
+
+/// What a neighbour port's wire is sending or is about to: the batch at the
+/// end of this round's outbox, while it has not started on the wire.
+#[derive(Debug, Clone, Copy)]
+pub struct Waiting {
+    /// When its first byte goes on the wire.
+    pub start: u64,
+    /// Its bytes on the wire, as one frame.
+    pub len: u64,
+    /// Its messages: the last this many of the outbox.
+    pub count: usize,
+}
+
+/// Bytes a message's frame of its own takes beyond what it adds to a batch:
+/// two delimiters, the first COBS code, the sequence number and the CRC.
+const FRAME_ALONE: u64 = 8;
+/// Bytes a batch's head adds to its first message's frame: its tag and count.
+const BATCH_HEAD: u64 = 2;
 
 /// Per-port state a node owns: what has arrived, what it sent this round.
 #[derive(Debug, Default)]
@@ -35,6 +55,8 @@ pub struct PortState {
     pub wire: VecDeque<(u64, Vec<u8>)>,
     /// Framed mode: frames this node wrote on the port this round.
     pub wire_out: Vec<(u64, Vec<u8>)>,
+    /// The batch messages sent now would join, if one waits for the wire.
+    pub waiting: Option<Waiting>,
 }
 
 /// [`Links`] over a node's seven [`PortState`]s at virtual time `now`.
@@ -53,6 +75,9 @@ pub struct SimLinks<'a> {
     pub miswired: Option<Port>,
     /// CPU cycles spent moving the bytes of the messages sent and taken.
     pub byte_cpu: u64,
+    /// Messages sent or taken that shared a frame with the ones before
+    /// them: each spares its end a frame's handling.
+    pub joined: u64,
 }
 
 impl SimLinks<'_> {
@@ -69,6 +94,7 @@ impl Links for SimLinks<'_> {
             let m = state.inbox.pop_front()?;
             state.bytes_in += m.len;
             self.byte_cpu += m.len * byte_cpu;
+            self.joined += u64::from(m.joined);
             Some(m.msg)
         } else {
             None
@@ -90,12 +116,48 @@ impl Links for SimLinks<'_> {
             return Err(msg);
         }
         let bytes = frame_len(&msg) as u64;
+        if port != Port::Host
+            && let Some(added) = state.join(bytes, self.now)
+        {
+            // Queued behind a busy wire: it leaves in the waiting batch, which
+            // arrives whole once its last byte has crossed.
+            state.busy_until += added * model.byte;
+            state.bytes += added;
+            let at = state.busy_until + model.latency;
+            let count = state.waiting.map_or(0, |w| w.count);
+            let first = state.outbox.len().saturating_sub(count);
+            state.outbox.iter_mut().skip(first).for_each(|m| m.at = at);
+            state.outbox.push(Stamped { at, msg, len: added, joined: true });
+            self.byte_cpu += added * model.byte_cpu;
+            self.joined += 1;
+            return Ok(());
+        }
         let start = self.now.max(state.busy_until);
         state.busy_until = start + bytes * model.byte;
         state.bytes += bytes;
-        state.outbox.push(Stamped { at: state.busy_until + model.latency, msg, len: bytes });
+        state.outbox.push(Stamped { at: state.busy_until + model.latency, msg, len: bytes, joined: false });
+        state.waiting = Some(Waiting { start, len: bytes, count: 1 });
         self.byte_cpu += bytes * model.byte_cpu;
         Ok(())
+    }
+}
+
+impl PortState {
+    /// Adds a message whose frame alone takes `bytes` to the batch waiting
+    /// for the wire at `now`, if one waits and it fits; the bytes it adds.
+    ///
+    /// The channel sends what is due together (`encode_batch`): a message
+    /// sent while the frames before it still wait for the wire goes with
+    /// them. A frame once on the wire takes nothing more.
+    fn join(&mut self, bytes: u64, now: u64) -> Option<u64> {
+        let w = self.waiting.as_mut().filter(|w| w.start > now)?;
+        let added = bytes.saturating_sub(FRAME_ALONE) + if w.count == 1 { BATCH_HEAD } else { 0 };
+        if w.len + added > MAX_FRAME_LEN as u64 {
+            return None;
+        }
+        w.len += added;
+        w.count += 1;
+        Some(added)
     }
 }
 
@@ -104,4 +166,24 @@ pub fn frame_len(msg: &Message) -> usize {
     let mut buf = [0u8; MAX_FRAME_LEN];
     let frame = link_proto::Frame::new(0, msg.clone());
     encode_frame(&frame, &mut buf).unwrap_or(MAX_FRAME_LEN)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_message_joins_only_a_batch_still_waiting_for_the_wire() {
+        let mut port = PortState::default();
+        assert_eq!(port.join(40, 0), None, "nothing waits");
+        port.waiting = Some(Waiting { start: 100, len: 40, count: 1 });
+        assert_eq!(port.join(40, 100), None, "on the wire from 100: too late");
+        // A frame's 8 bytes spared; the first to join adds the batch's head.
+        assert_eq!(port.join(40, 99), Some(34));
+        assert_eq!(port.join(40, 99), Some(32));
+        while port.join(40, 99).is_some() {}
+        let w = port.waiting.unwrap();
+        assert!(w.len <= MAX_FRAME_LEN as u64 && w.len + 32 > MAX_FRAME_LEN as u64, "{w:?}");
+        assert_eq!(w.count as u64, 1 + (w.len - 40 - 2) / 32);
+    }
 }

@@ -64,25 +64,35 @@ impl Slot {
                 host_link: config.host_link.model(),
                 miswired: None,
                 byte_cpu: 0,
+                joined: 0,
             };
             let work = self.node.poll(self.clock, &mut links);
             let (miswired, byte_cpu) = (links.miswired, links.byte_cpu);
             self.miswired = self.miswired.or(miswired);
-            worked |= self.advance(&work, byte_cpu, end, config);
+            let spared = links.joined * config.cost.frame_spared();
+            worked |= self.advance(&work, byte_cpu, spared, end, config);
         }
         worked
     }
 
     /// Moves the clock past a poll: by the work's cost and the CPU cycles its
-    /// bytes took (`byte_cpu`), or, idle, to the next arrival in this round or
+    /// bytes took (`byte_cpu`), less what messages sharing a frame spared
+    /// (`spared`), or, idle, to the next arrival in this round or
     /// the round's end. Returns whether work was done.
     ///
     /// A poll that did no work of the node's (only acknowledgements moved)
     /// is not charged its bytes: the node's load meter counts it as waiting.
-    fn advance(&mut self, work: &node_fw::Work, byte_cpu: u64, end: u64, config: &SimConfig) -> bool {
+    fn advance(
+        &mut self,
+        work: &node_fw::Work,
+        byte_cpu: u64,
+        spared: u64,
+        end: u64,
+        config: &SimConfig,
+    ) -> bool {
         if work.is_busy() {
             let mut split = config.cost.split(work);
-            split.messaging += byte_cpu;
+            split.messaging = (split.messaging + byte_cpu).saturating_sub(spared);
             self.busy += split;
             self.clock += split.total().max(1);
             return true;
@@ -129,7 +139,7 @@ impl Slot {
                 written
             });
             self.miswired = self.miswired.or(miswired);
-            worked |= self.advance(&work, byte_cpu, end, config);
+            worked |= self.advance(&work, byte_cpu, 0, end, config);
         }
         worked
     }
