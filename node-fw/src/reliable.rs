@@ -129,6 +129,9 @@ pub struct Channel<const W: usize> {
     sync_ack_due: Option<u32>,
     /// The peer restarted since the owner last asked.
     peer_restarted: bool,
+    /// Data came from a peer we have no stream with: it still talks to our
+    /// previous incarnation, and our `Sync` tells it we restarted.
+    peer_unaware: bool,
     decoder: FrameDecoder,
     timeout: u64,
     /// How long the window may now go without progress before it is resent:
@@ -167,6 +170,7 @@ impl<const W: usize> Channel<W> {
             peer: None,
             sync_ack_due: None,
             peer_restarted: false,
+            peer_unaware: false,
             decoder: FrameDecoder::new(),
             timeout,
             resend_wait: timeout,
@@ -273,7 +277,10 @@ impl<const W: usize> Channel<W> {
             Message::Hello(h) if self.peer.is_none() && h.version != PROTOCOL_VERSION => {
                 deliver(Message::Hello(h));
             }
-            _ if self.peer.is_none() => self.stats.discarded += 1,
+            _ if self.peer.is_none() => {
+                self.stats.discarded += 1;
+                self.peer_unaware = true;
+            }
             _ if frame.seq == self.expected => {
                 if deliver(core::mem::replace(&mut frame.msg, Message::Space)) {
                     self.expected = self.expected.wrapping_add(1);
@@ -461,11 +468,14 @@ impl<const W: usize> Channel<W> {
     }
 
     /// Sends our `Sync` once there is data to start a stream for, and again
-    /// after every time-out without an answer.
+    /// after every time-out without an answer; or once to a peer that sent
+    /// data without one, so that it learns we restarted.
     fn announce(&mut self, now: u64, buf: &mut [u8], write: &mut impl FnMut(&[u8]) -> bool) {
         let due = self.sync_sent_at.is_none_or(|at| now.saturating_sub(at) >= self.timeout);
-        if !self.unacked.is_empty() && due && write_control(Message::Sync(self.incarnation), buf, write) {
+        let wanted = !self.unacked.is_empty() || self.peer_unaware;
+        if wanted && due && write_control(Message::Sync(self.incarnation), buf, write) {
             self.sync_sent_at = Some(now);
+            self.peer_unaware = false;
         }
     }
 

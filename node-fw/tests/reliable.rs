@@ -193,6 +193,26 @@ fn a_restarted_peer_is_noticed_and_both_streams_start_again() {
 }
 
 #[test]
+fn a_restarted_end_with_nothing_to_send_announces_itself_to_the_old_stream() {
+    let (mut a, mut b) = pair();
+    let (mut now, mut got_a, mut got_b) = (0, Vec::new(), Vec::new());
+    a.send(msg(0)).unwrap();
+    b.send(msg(100)).unwrap();
+    exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
+
+    // B restarts with nothing of its own to send: a board that waits for
+    // its host. A's stream to the old B would go unanswered for ever.
+    b = Channel::new(5);
+    b.set_incarnation(71);
+    let mut got_b = Vec::new();
+    a.send(msg(1)).unwrap();
+    exchange(&mut a, &mut b, &mut now, &mut got_a, &mut got_b);
+    assert!(a.take_peer_restart(), "A learns of the restart from B's Sync");
+    assert_eq!(got_b, vec![msg(1)], "and its frame reaches the new B");
+    assert!(!a.busy() && !b.busy());
+}
+
+#[test]
 fn a_late_copy_of_a_sync_resets_nothing() {
     let (mut a, mut b) = pair();
     // Catch B's first words: its `Sync`.
