@@ -276,7 +276,13 @@ impl Board {
         let slot = &mut self.slots[node];
         let at = slot.clock;
         let len = crate::sim_links::frame_len(&msg) as u64;
-        slot.ports[Port::Host.index()].inbox.push_back(Stamped { at, msg, len, joined: false });
+        slot.ports[Port::Host.index()].inbox.push_back(Stamped {
+            at,
+            msg,
+            len,
+            joined: false,
+            frame_start: at,
+        });
     }
 
     /// Runs until the host is finished; fails on a stall or a miswired send.
@@ -372,8 +378,6 @@ impl Board {
         for i in 0..self.slots.len() {
             for p in 0..7 {
                 let out = std::mem::take(&mut self.slots[i].ports[p].outbox);
-                // What went to the peer takes no more messages.
-                self.slots[i].ports[p].waiting = None;
                 if out.is_empty() {
                     continue;
                 }
@@ -386,7 +390,16 @@ impl Board {
                 }
                 let Some(j) = self.neighbours[i][p] else { continue };
                 let back = Port::NEIGHBOURS[p].opposite().index();
-                self.slots[j].ports[back].inbox.extend(out);
+                let inbox = &mut self.slots[j].ports[back].inbox;
+                // A batch begun in an earlier round that messages joined in
+                // this one arrives whole, with its last.
+                if let Some(first) = out.first().filter(|m| m.joined) {
+                    let batch = first.frame_start;
+                    let at =
+                        out.iter().filter(|m| m.frame_start == batch).map(|m| m.at).max().unwrap_or(first.at);
+                    inbox.iter_mut().rev().take_while(|m| m.frame_start == batch).for_each(|m| m.at = at);
+                }
+                inbox.extend(out);
             }
         }
         self.hand_to_host(host, now);

@@ -16,6 +16,8 @@ pub struct Stamped {
     pub len: u64,
     /// It went in a batch with the messages before it, not a frame of its own.
     pub joined: bool,
+    /// When the frame it went in started on the wire: its batch, on its port.
+    pub frame_start: u64,
 }
 
 /// What a neighbour port's wire is sending or is about to: the batch at the
@@ -124,10 +126,11 @@ impl Links for SimLinks<'_> {
             state.busy_until += added * model.byte;
             state.bytes += added;
             let at = state.busy_until + model.latency;
-            let count = state.waiting.map_or(0, |w| w.count);
-            let first = state.outbox.len().saturating_sub(count);
-            state.outbox.iter_mut().skip(first).for_each(|m| m.at = at);
-            state.outbox.push(Stamped { at, msg, len: added, joined: true });
+            let frame_start = state.waiting.map_or(0, |w| w.start);
+            // Those of a batch begun in an earlier round are in the peer's
+            // inbox: the board moves them when it delivers this one.
+            state.outbox.iter_mut().filter(|m| m.frame_start == frame_start).for_each(|m| m.at = at);
+            state.outbox.push(Stamped { at, msg, len: added, joined: true, frame_start });
             self.byte_cpu += added * model.byte_cpu;
             self.joined += 1;
             return Ok(());
@@ -135,7 +138,14 @@ impl Links for SimLinks<'_> {
         let start = self.now.max(state.busy_until);
         state.busy_until = start + bytes * model.byte;
         state.bytes += bytes;
-        state.outbox.push(Stamped { at: state.busy_until + model.latency, msg, len: bytes, joined: false });
+        let stamped = Stamped {
+            at: state.busy_until + model.latency,
+            msg,
+            len: bytes,
+            joined: false,
+            frame_start: start,
+        };
+        state.outbox.push(stamped);
         state.waiting = Some(Waiting { start, len: bytes, count: 1 });
         self.byte_cpu += bytes * model.byte_cpu;
         Ok(())
