@@ -405,21 +405,17 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
     }
 
-    /// Whether `msg` from `port` belongs to this node's host session: a
-    /// neighbour's only when its last hello named this node's session. Those
-    /// that do not are what was still in flight when one of the two began a
-    /// new session: a reply to a ray this node forgot when it started over,
-    /// a grant of slots the neighbour no longer sets aside, or what a
-    /// neighbour's channel resent to this node after it restarted, rays of a
-    /// frame it never saw (the neighbour reports the restart to the host).
-    /// None can be of a session this node has yet to join: a link carries a
-    /// neighbour's hello before anything else, and a host starts no frame
-    /// before every node has said hello in its session. (Links without
-    /// sessions, such as in-memory queues, put every node in session 0.)
+    /// Whether `msg` from `port` belongs to this node's host session: not
+    /// when a neighbour's last hello named another. Those are what was still
+    /// in flight when one of the two began a new session: a reply to a ray
+    /// this node forgot when it started over, a grant of slots the neighbour
+    /// no longer sets aside. Until both have a session (a node says hello
+    /// once its host has spoken) nothing is stale, for neither has left one.
+    /// And none can be of a session this node has yet to join: a serial host
+    /// starts no frame before every node has said hello in its session.
     fn in_session(&self, port: Port, msg: &Message) -> bool {
-        let Some(neighbour) = self.ports.get(port.index()) else { return true };
-        matches!(msg, Message::Hello(_))
-            || neighbour.session.zip(self.session).is_some_and(|(t, ours)| t == ours)
+        let theirs = self.ports.get(port.index()).and_then(|n| n.session);
+        matches!(msg, Message::Hello(_)) || theirs.zip(self.session).is_none_or(|(t, ours)| t == ours)
     }
 
     /// Stops the node, reporting the first error to the host.
