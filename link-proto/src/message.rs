@@ -669,6 +669,10 @@ pub enum ErrorCode {
     /// The neighbour on port `a` restarted (a new incarnation on its link): the
     /// rays and spheres it held are gone.
     PeerRestarted,
+    /// This node started afresh mid-frame: before its host spoke to it, the
+    /// neighbour on port `a` passed it a ray on a grant it never gave, the
+    /// rest of a frame its previous incarnation was in.
+    Restarted,
 }
 
 /// A node's error, sent to the host. Firmware never panics on input.

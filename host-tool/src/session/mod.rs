@@ -169,6 +169,9 @@ fn node_errors<T>(frame: &FrameBuffer<T>, plan: &Plan) -> Result<(), HostError> 
     {
         return Err(restarted(peer, format!("its neighbour node {} saw it start again", e.node)));
     }
+    if e.code == ErrorCode::Restarted {
+        return Err(restarted(e.node, "a neighbour passed it a ray of the frame it left".into()));
+    }
     let c = plan.partition.coord(usize::from(e.node));
     let what = match (e.code, link_proto::Found::from_wire(e.b)) {
         (ErrorCode::Unexpected, Some(link_proto::Found::Message(kind))) => {

@@ -37,6 +37,11 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         let ray = self.off_the_wire(ray);
         let Some(given) = self.ports.get_mut(port.index()).map(|n| &mut n.grants_given).filter(|g| **g > 0)
         else {
+            // A node its host has not spoken to gave no grants: it restarted,
+            // and a neighbour's channel resent it the old stream.
+            if self.session.is_none() {
+                return self.fail(ErrorCode::Restarted, port as u32, 0);
+            }
             // More rays than grants: a protocol violation.
             return self.fail_at(ErrorCode::Unexpected, port as u32, Site::GrantedRayWithoutGrant);
         };
