@@ -104,7 +104,11 @@ fn drain<U: Read + ReadReady + LostBytes, const W: usize, const Q: usize>(
     links: &mut FramedLinks<W, Q>,
 ) -> usize {
     // Byte by byte, and only while the port's inbox has room: a frame that
-    // completes into a full inbox would be dropped and cost a resend.
+    // completes into a full inbox would be dropped and cost a resend. First
+    // what is left of a batch the inbox had no room for.
+    if links.holds_back(port) {
+        links.ingest(port, &[]);
+    }
     let mut byte = [0u8; 1];
     let mut read = 0;
     while read < READ_BURST && links.can_ingest(port) && uart.read_ready().unwrap_or(false) {

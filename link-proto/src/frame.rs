@@ -243,6 +243,9 @@ pub struct FrameDecoder {
     discarding: bool,
     /// The messages of a batch not yet handed out, decoded in `buf`.
     batch: Batch,
+    /// `batch` as it was before the last message handed out, if that came
+    /// from a batch: what [`FrameDecoder::unread`] puts back.
+    again: Batch,
 }
 
 /// What is left of a batch: `left` messages in `buf[at..end]`, the next
@@ -271,7 +274,7 @@ impl Default for FrameDecoder {
 impl FrameDecoder {
     /// An empty decoder.
     pub const fn new() -> Self {
-        Self { buf: [0; MAX_FRAME_LEN], len: 0, discarding: false, batch: Batch::NONE }
+        Self { buf: [0; MAX_FRAME_LEN], len: 0, discarding: false, batch: Batch::NONE, again: Batch::NONE }
     }
 
     /// Consumes bytes from the front of `bytes` up to the first result: a
@@ -299,6 +302,10 @@ impl FrameDecoder {
     pub fn decode_into(&mut self, bytes: &mut &[u8], out: &mut Frame) -> Option<Result<(), DecodeError>> {
         if self.batch.left > 0 {
             return Some(self.next_of_batch(out));
+        }
+        // Bytes go where a batch put back would be read from.
+        if !bytes.is_empty() {
+            self.again = Batch::NONE;
         }
         while !bytes.is_empty() {
             let (run, closed, rest) = match cobs::first_zero(bytes) {
@@ -347,6 +354,27 @@ impl FrameDecoder {
         self.len = 0;
         self.discarding = false;
         self.batch = Batch::NONE;
+        self.again = Batch::NONE;
+    }
+
+    /// Puts the last message handed out back, if it came from a batch: the
+    /// next call hands it out again, before reading any byte. Whether it did.
+    /// A receiver with no room for a batch's next message so keeps it, and
+    /// the rest, until it has (reading no bytes meanwhile: the batch is in
+    /// the buffer they would go to).
+    pub fn unread(&mut self) -> bool {
+        let again = core::mem::replace(&mut self.again, Batch::NONE);
+        if again.left == 0 {
+            return false;
+        }
+        self.batch = again;
+        true
+    }
+
+    /// Whether messages of a batch wait to be handed out: feed no bytes
+    /// until they have been (a call with none hands them out).
+    pub fn holds_batch(&self) -> bool {
+        self.batch.left > 0
     }
 
     fn close(&mut self, out: &mut Frame) -> Option<Result<(), DecodeError>> {
@@ -355,14 +383,20 @@ impl FrameDecoder {
             return None;
         }
         let encoded = self.buf.get_mut(..len)?;
-        Some(decode_payload(encoded, out).map(|batch| self.batch = batch))
+        self.again = Batch::NONE;
+        Some(decode_payload(encoded, out).map(|(rest, again)| {
+            self.batch = rest;
+            self.again = again;
+        }))
     }
 
     /// The next message of the batch in the buffer, into `out`. Out of line:
     /// every call of `decode_into` asks, few find a batch.
     #[inline(never)]
     fn next_of_batch(&mut self, out: &mut Frame) -> Result<(), DecodeError> {
-        let Batch { seq, left, at, end } = core::mem::replace(&mut self.batch, Batch::NONE);
+        let before = core::mem::replace(&mut self.batch, Batch::NONE);
+        self.again = Batch::NONE;
+        let Batch { seq, left, at, end } = before;
         let bytes = self.buf.get(usize::from(at)..usize::from(end)).ok_or(DecodeError::Body)?;
         let left = left.saturating_sub(1);
         let rest = decode_message(bytes, &mut out.msg, left)?;
@@ -370,6 +404,7 @@ impl FrameDecoder {
         if left > 0 {
             self.batch = Batch { seq: seq.wrapping_add(1), left, at: end.saturating_sub(rest), end };
         }
+        self.again = before;
         Ok(())
     }
 }
@@ -381,7 +416,7 @@ impl FrameDecoder {
 /// Out of line: inlined into `close`, the message was built aside and
 /// copied into `out` (60 instructions a frame on a Cortex-M3).
 #[inline(never)]
-fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<Batch, DecodeError> {
+fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<(Batch, Batch), DecodeError> {
     let (start, len) = cobs::decode_in_place(encoded).ok_or(DecodeError::Cobs)?;
     let payload = encoded.get(start..start + len).ok_or(DecodeError::Cobs)?;
     let body_len = payload.len().checked_sub(CRC_LEN).ok_or(DecodeError::Short)?;
@@ -400,7 +435,7 @@ fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<Batch, DecodeEr
             let ray = ray_wire::decode_ray(bytes).ok_or(DecodeError::Body)?;
             out.msg = if *tag == RAY_TAG { Message::Ray(ray) } else { Message::GrantedRay(ray) };
             (out.seq, out.ack) = (*seq, ack);
-            Ok(Batch::NONE)
+            Ok((Batch::NONE, Batch::NONE))
         }
         [seq, BATCH_TAG, head, rest @ ..] => {
             // Offsets in the buffer: the body starts at `start`.
@@ -438,16 +473,23 @@ fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<Batch, DecodeEr
 /// into `out`, if it holds one or none. Inlined, so that a small message is
 /// written in place rather than built aside, as large as a ray, and copied.
 #[inline(always)]
-fn put(out: &mut Frame, seq: Seq, msg: Message, trailer: &[u8]) -> Result<Batch, DecodeError> {
+fn put(out: &mut Frame, seq: Seq, msg: Message, trailer: &[u8]) -> Result<(Batch, Batch), DecodeError> {
     let ack = decode_trailer(trailer)?;
     *out = Frame { seq, msg, ack };
-    Ok(Batch::NONE)
+    Ok((Batch::NONE, Batch::NONE))
 }
 
 /// A batch's head (`head`: its count and whether an acknowledgement
 /// follows) and first message into `out`, from `rest`, the bytes after the
-/// head up to `end`; what is left of it.
-fn decode_batch(seq: Seq, head: u8, rest: &[u8], end: u8, out: &mut Frame) -> Result<Batch, DecodeError> {
+/// head up to `end`; what is left of it, and the whole batch (for
+/// [`FrameDecoder::unread`]).
+fn decode_batch(
+    seq: Seq,
+    head: u8,
+    rest: &[u8],
+    end: u8,
+    out: &mut Frame,
+) -> Result<(Batch, Batch), DecodeError> {
     let (count, ack, messages) = match (head & !BATCH_ACK, head & BATCH_ACK != 0, rest) {
         (0, _, _) | (_, true, []) => return Err(DecodeError::Body),
         (count, false, messages) => (count, None, messages),
@@ -456,11 +498,14 @@ fn decode_batch(seq: Seq, head: u8, rest: &[u8], end: u8, out: &mut Frame) -> Re
     let left = count - 1;
     let rest = decode_message(messages, &mut out.msg, left)?;
     (out.seq, out.ack) = (seq, ack);
-    Ok(if left > 0 {
+    // `messages` runs to `end`, within a buffer of at most 255 bytes.
+    let whole = Batch { seq, left: count, at: end.saturating_sub(messages.len() as u8), end };
+    let rest = if left > 0 {
         Batch { seq: seq.wrapping_add(1), left, at: end.saturating_sub(rest), end }
     } else {
         Batch::NONE
-    })
+    };
+    Ok((rest, whole))
 }
 
 /// Decodes a batch's message at the start of `bytes` into `out` (left as it

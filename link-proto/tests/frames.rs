@@ -655,3 +655,42 @@ fn sliding_staggers_the_rows_of_any_start_and_keeps_staggered_columns() {
         assert_eq!(start.when_sliding(true), sliding, "{start:?}");
     }
 }
+
+#[test]
+fn a_batch_message_put_back_comes_again_before_any_byte() {
+    let msgs = [Message::Grant(1), Message::Space, Message::Grant(3)];
+    let mut out = [0u8; MAX_FRAME_LEN];
+    let (n, _) = encode_batch(numbered(10, &msgs), Some(4), &mut out).unwrap();
+    let mut dec = FrameDecoder::new();
+    let mut bytes = &out[..n];
+    let first = dec.decode(&mut bytes).unwrap().unwrap();
+    assert_eq!(first, Frame { seq: 10, msg: Message::Grant(1), ack: Some(4) });
+    // The first, put back, comes again (its acknowledgement taken already).
+    assert!(dec.unread() && dec.holds_batch());
+    let mut next = Vec::new();
+    let mut more = &[0x55u8][..];
+    next.push(dec.decode(&mut more).unwrap().unwrap());
+    assert_eq!(more, &[0x55], "no byte read while the batch is held");
+    next.push(dec.decode(&mut bytes).unwrap().unwrap());
+    assert!(dec.unread(), "the second put back");
+    next.extend(std::iter::from_fn(|| dec.decode(&mut bytes)).map(Result::unwrap));
+    let seqs: Vec<_> = next.iter().map(|f| (f.seq, f.msg.clone(), f.ack)).collect();
+    assert_eq!(
+        seqs,
+        [
+            (10, msgs[0].clone(), None),
+            (11, msgs[1].clone(), None),
+            (11, msgs[1].clone(), None),
+            (12, msgs[2].clone(), None)
+        ]
+    );
+    // The last too, while no byte has come after it.
+    assert!(!dec.holds_batch() && dec.unread());
+    assert_eq!(dec.decode(&mut bytes), Some(Ok(Frame::new(12, msgs[2].clone()))));
+    assert_eq!(dec.decode(&mut bytes), None);
+    // A frame of its own cannot be put back.
+    let mut dec = FrameDecoder::new();
+    let single = encode(&Frame::new(1, Message::Space));
+    assert!(dec.decode(&mut &single[..]).unwrap().is_ok());
+    assert!(!dec.unread());
+}

@@ -92,11 +92,23 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
         }
     }
 
+    /// Whether messages of a batch that arrived on `port` wait for room in
+    /// its inbox ([`FramedLinks::can_ingest`]).
+    pub fn holds_back(&self, port: Port) -> bool {
+        self.channels.get(port.index()).is_some_and(Channel::holds_back)
+    }
+
     /// Whether `port` can take another received message. A byte stream that
     /// can wait (a UART whose sender is flow-controlled) should stop feeding
     /// the port until this is true again, so no frame is dropped for room.
+    ///
+    /// Nor while the rest of a batch waits for room: it is in the buffer the
+    /// next bytes would go to. An [`FramedLinks::ingest`] with no bytes
+    /// hands it over once the inbox has room.
     pub fn can_ingest(&self, port: Port) -> bool {
-        self.inbox.get(port.index()).is_some_and(|q| !q.is_full())
+        let i = port.index();
+        self.inbox.get(i).is_some_and(|q| !q.is_full())
+            && self.channels.get(i).is_some_and(|c| !c.holds_back())
     }
 
     /// Writes what is due on every port at `now`; `write` returns false when a

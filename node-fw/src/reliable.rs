@@ -232,9 +232,21 @@ impl<const W: usize> Channel<W> {
                     | DecodeError::Crc
                     | DecodeError::Body,
                 ) => self.stats.corrupted += 1,
-                Ok(()) => self.take(&mut frame, &mut deliver),
+                Ok(()) if self.take(&mut frame, &mut deliver) => {}
+                // Refused for room: a batch's message waits in the decoder
+                // with the rest of its batch (`holds_back`) when no byte
+                // after it has come; otherwise it is sent again.
+                Ok(()) if rest.is_empty() && self.decoder.unread() => return,
+                Ok(()) => self.stats.discarded += 1,
             }
         }
+    }
+
+    /// Whether messages of a batch wait for the owner to take them, which a
+    /// call of [`Channel::receive`] with no bytes hands out: feed no bytes
+    /// until they have gone (they would be dropped with the batch).
+    pub fn holds_back(&self) -> bool {
+        self.decoder.holds_batch()
     }
 
     /// The peer's incarnation, once its `Sync` has arrived.
@@ -247,7 +259,8 @@ impl<const W: usize> Channel<W> {
         core::mem::take(&mut self.peer_restarted)
     }
 
-    fn take(&mut self, frame: &mut Frame, deliver: &mut impl FnMut(Message) -> bool) {
+    /// Takes a decoded frame; false only when `deliver` refused its message.
+    fn take(&mut self, frame: &mut Frame, deliver: &mut impl FnMut(Message) -> bool) -> bool {
         // A piggybacked ack counts as a standalone one would, whatever the
         // frame it rides on.
         if let Some(seq) = frame.ack
@@ -282,14 +295,13 @@ impl<const W: usize> Channel<W> {
                 self.peer_unaware = true;
             }
             _ if frame.seq == self.expected => {
-                if deliver(core::mem::replace(&mut frame.msg, Message::Space)) {
-                    self.expected = self.expected.wrapping_add(1);
-                    self.control_due = Owed::Ack(frame.seq);
-                    self.taken_unacked += 1;
-                    self.ack_held_since.get_or_insert(self.last_transmit);
-                } else {
-                    self.stats.discarded += 1;
+                if !deliver(core::mem::replace(&mut frame.msg, Message::Space)) {
+                    return false;
                 }
+                self.expected = self.expected.wrapping_add(1);
+                self.control_due = Owed::Ack(frame.seq);
+                self.taken_unacked += 1;
+                self.ack_held_since.get_or_insert(self.last_transmit);
             }
             _ => {
                 self.stats.discarded += 1;
@@ -303,6 +315,7 @@ impl<const W: usize> Channel<W> {
                 };
             }
         }
+        true
     }
 
     /// The peer's `Sync`: a first one starts its stream, the same again is
