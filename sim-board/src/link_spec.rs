@@ -167,19 +167,20 @@ impl LinkPreset {
     /// array rendering the quick start's frame (64x64, 60 spheres, seed 3,
     /// grid 16^3, static), each node's emulated running time less what the
     /// in-memory board charges it, over its polls that did work, by least
-    /// squares: 10 992 instructions. It is a mean over unlike passes: the
-    /// emulated nodes poll with work 29-45% more often than the in-memory
-    /// ones (`busy_polls` in `loads.csv`: their messages complete a few bytes
-    /// at a time, so fewer arrive together), and per emulated busy poll they
-    /// spend 6 600-9 400 instructions beyond the kernels, the busier nodes
-    /// more. Tracing node 0 (QEMU `-singlestep -d exec`) finds its passes
+    /// squares: 10 502 instructions (three QEMU runs, at the firmware that
+    /// sends frames due together as one batch). It is a mean over unlike
+    /// passes: the emulated nodes poll with work 0.8-1.3 times as often as
+    /// the in-memory ones (`busy_polls` in `loads.csv`: their messages
+    /// complete a few bytes at a time, so fewer arrive together), and per
+    /// emulated busy poll they spend 5 800-9 700 instructions beyond the
+    /// kernels, the busier nodes more. Tracing node 0 (QEMU `-singlestep -d exec`) finds its passes
     /// moving every byte through a UART register, and the frame decoder
     /// copying what arrived a few bytes at a time. The other
     /// presets stand for boards whose UARTs move bytes by interrupt or DMA,
     /// whose pass is not measured yet: none is charged.
     pub const fn loop_pass(self) -> u64 {
         match self {
-            LinkPreset::Emulated => 10_992,
+            LinkPreset::Emulated => 10_502,
             LinkPreset::F413 | LinkPreset::Ideal => 0,
         }
     }
