@@ -214,24 +214,29 @@ fn put_bytes(bytes: &[u8], payload: &mut [u8]) -> Result<usize, EncodeError> {
 /// of a hop's instructions at each end, for the message that is most of the
 /// traffic.
 fn encode_ray_body(seq: Seq, tag: u8, ray: &RayMsg, payload: &mut [u8]) -> Result<usize, EncodeError> {
-    let (head, bytes) = payload.split_at_mut_checked(3).ok_or(EncodeError::BufferTooSmall)?;
+    let (head, rest) = payload.split_first_mut().ok_or(EncodeError::BufferTooSmall)?;
+    *head = seq;
+    Ok(1 + encode_ray_message(tag, ray, rest)?)
+}
+
+/// A ray's message as it follows the sequence number: the variant's index,
+/// the wire form's length and the wire form.
+#[inline(always)]
+fn encode_ray_message(tag: u8, ray: &RayMsg, out: &mut [u8]) -> Result<usize, EncodeError> {
+    let (head, bytes) = out.split_at_mut_checked(2).ok_or(EncodeError::BufferTooSmall)?;
     let n = ray_wire::encode_ray(ray, bytes).ok_or(EncodeError::BufferTooSmall)?;
-    head.copy_from_slice(&[seq, tag, n as u8]);
-    Ok(3 + n)
+    head.copy_from_slice(&[tag, n as u8]);
+    Ok(2 + n)
 }
 
 /// Writes `msg` as it follows the sequence number in a frame of its own
 /// (`encode_body`), for a batch; its length.
 fn encode_message(msg: &Message, out: &mut [u8]) -> Result<usize, EncodeError> {
-    let (tag, ray) = match msg {
-        Message::Ray(ray) => (RAY_TAG, ray),
-        Message::GrantedRay(ray) => (GRANTED_RAY_TAG, ray),
-        _ => return Ok(postcard::to_slice(msg, out).map_err(|_| EncodeError::BufferTooSmall)?.len()),
-    };
-    let (head, bytes) = out.split_at_mut_checked(2).ok_or(EncodeError::BufferTooSmall)?;
-    let n = ray_wire::encode_ray(ray, bytes).ok_or(EncodeError::BufferTooSmall)?;
-    head.copy_from_slice(&[tag, n as u8]);
-    Ok(2 + n)
+    match msg {
+        Message::Ray(ray) => encode_ray_message(RAY_TAG, ray, out),
+        Message::GrantedRay(ray) => encode_ray_message(GRANTED_RAY_TAG, ray, out),
+        _ => Ok(postcard::to_slice(msg, out).map_err(|_| EncodeError::BufferTooSmall)?.len()),
+    }
 }
 
 /// Incremental frame decoder with a fixed buffer.
@@ -383,7 +388,6 @@ impl FrameDecoder {
             return None;
         }
         let encoded = self.buf.get_mut(..len)?;
-        self.again = Batch::NONE;
         Some(decode_payload(encoded, out).map(|(rest, again)| {
             self.batch = rest;
             self.again = again;

@@ -106,9 +106,7 @@ impl<const W: usize, const Q: usize> FramedLinks<W, Q> {
     /// next bytes would go to. An [`FramedLinks::ingest`] with no bytes
     /// hands it over once the inbox has room.
     pub fn can_ingest(&self, port: Port) -> bool {
-        let i = port.index();
-        self.inbox.get(i).is_some_and(|q| !q.is_full())
-            && self.channels.get(i).is_some_and(|c| !c.holds_back())
+        self.inbox.get(port.index()).is_some_and(|q| !q.is_full()) && !self.holds_back(port)
     }
 
     /// Writes what is due on every port at `now`; `write` returns false when a

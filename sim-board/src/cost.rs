@@ -53,15 +53,15 @@ impl Default for CostModel {
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (four frames on a board): one end of a hop (the ray in
     /// its compact wire form, the reply carrying the ray's ack, the reply's
-    /// ack alone every fourth reply) 1 617.5, and of a ray reply with its ack
-    /// alone every fourth time 616.0, which stands for every short message; a
+    /// ack alone every fourth reply) 1 603.3, and of a ray reply with its ack
+    /// alone every fourth time 609.0, which stands for every short message; a
     /// ray end is charged the difference, 1 002 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every fourth ray) 1 122.5; of one in a batch of four in one frame
-    /// 946.6. The rays are half primaries from the eye,
+    /// every fourth ray) 1 112.2; of one in a batch of four in one frame
+    /// 943.8. The rays are half primaries from the eye,
     /// half reflections from inside the grid with half their pixel's credit
     /// (39.0 bytes a frame). A node's end of a retirement (the host's acks
-    /// taken) 1 441.7 with one record, 3 686.5 with six: 449 a further record.
+    /// taken) 1 437.3 with one record, 3 681.6 with six: 449 a further record.
     fn default() -> Self {
         Self {
             cube_step: 109,
