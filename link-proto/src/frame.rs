@@ -81,52 +81,65 @@ pub fn encode_parts(seq: Seq, msg: &Message, ack: Option<Seq>, out: &mut [u8]) -
     seal(out, body_len)
 }
 
-/// Encodes as many of `frames` (sequence numbers and messages, consecutive
-/// from the first) as fit into one frame in `out`, with `ack` riding on it;
-/// returns the bytes written and how many messages went in (at least one,
-/// or an error when there are none).
+/// Encodes a frame of one message already in its wire form (`message`, as
+/// [`encode_message`] writes it) into `out`: the same bytes as
+/// [`encode_parts`] of that message. A sender keeps what it has not had
+/// acknowledged in this form, written once however often it is sent.
+pub fn encode_encoded(
+    seq: Seq,
+    message: &[u8],
+    ack: Option<Seq>,
+    out: &mut [u8],
+) -> Result<usize, EncodeError> {
+    const SMALL: EncodeError = EncodeError::BufferTooSmall;
+    let payload = payload_room(out)?;
+    let (head, rest) = payload.split_first_mut().ok_or(SMALL)?;
+    *head = seq;
+    rest.get_mut(..message.len()).ok_or(SMALL)?.copy_from_slice(message);
+    let mut body_len = 1 + message.len();
+    if let Some(ack) = ack {
+        *payload.get_mut(body_len).ok_or(SMALL)? = ack;
+        body_len += 1;
+    }
+    seal(out, body_len)
+}
+
+/// Encodes as many of `frames` (sequence numbers and messages in their wire
+/// form, [`encode_message`]'s, consecutive from the first) as fit into one
+/// frame in `out`, with `ack` riding on it; returns the bytes written and
+/// how many messages went in (at least one, or an error when there are none).
 ///
 /// A batch: `seq ++ [BATCH_TAG, count | BATCH_ACK] ++ [ack] ++ messages`,
 /// each message as it follows the sequence number in a frame of its own.
 /// It pays a frame's delimiters, COBS code, CRC and header once for all its
 /// messages: when rays queue up behind a busy link, they leave together. A
-/// message that goes alone goes as [`encode_parts`] writes it.
+/// message that goes alone goes as [`encode_encoded`] writes it.
 pub fn encode_batch<'m>(
-    frames: impl IntoIterator<Item = (Seq, &'m Message)>,
+    frames: impl IntoIterator<Item = (Seq, &'m [u8])>,
     ack: Option<Seq>,
     out: &mut [u8],
 ) -> Result<(usize, usize), EncodeError> {
     const SMALL: EncodeError = EncodeError::BufferTooSmall;
     let mut frames = frames.into_iter();
-    let (first, msg) = frames.next().ok_or(SMALL)?;
+    let (first, message) = frames.next().ok_or(SMALL)?;
     let payload = payload_room(out)?;
     let limit = payload.len().saturating_sub(CRC_LEN);
     let head_len = if ack.is_some() { 4 } else { 3 };
-    let Some(Ok(first_len)) = payload.get_mut(head_len..limit).map(|room| encode_message(msg, room)) else {
-        // Too large to share a frame.
-        return Ok((encode_parts(first, msg, ack, out)?, 1));
-    };
-    let (mut len, mut count) = (head_len + first_len, 1u8);
-    for (seq, msg) in frames {
+    let (mut len, mut count) = (head_len, 0u8);
+    for (seq, message) in core::iter::once((first, message)).chain(frames) {
         if count >= BATCH_MAX || seq != first.wrapping_add(count) {
             break;
         }
-        match payload.get_mut(len..limit).map(|room| encode_message(msg, room)) {
-            Some(Ok(n)) => len += n,
-            _ => break,
+        match payload.get_mut(len..limit).and_then(|room| room.get_mut(..message.len())) {
+            Some(room) => room.copy_from_slice(message),
+            None => break,
         }
+        len += message.len();
         count += 1;
     }
-    if count == 1 {
-        // Alone after all: moved down over the batch's head, as a frame of its own.
-        payload.copy_within(head_len..len, 1);
-        len = 1 + first_len;
-        *payload.first_mut().ok_or(SMALL)? = first;
-        if let Some(ack) = ack {
-            *payload.get_mut(len).ok_or(SMALL)? = ack;
-            len += 1;
-        }
-        return Ok((seal(out, len)?, 1));
+    if count < 2 {
+        // Alone: as a frame of its own.
+        return Ok((encode_encoded(first, message, ack, out)?, 1));
     }
     let head = [first, BATCH_TAG, count | if ack.is_some() { BATCH_ACK } else { 0 }, ack.unwrap_or(0)];
     payload.get_mut(..head_len).ok_or(SMALL)?.copy_from_slice(head.get(..head_len).unwrap_or_default());
@@ -180,22 +193,32 @@ const BATCH_MAX: u8 = 0x7F;
 /// then its message), at the start of `payload`; its length.
 #[inline(always)]
 fn encode_body(seq: Seq, msg: &Message, payload: &mut [u8]) -> Result<usize, EncodeError> {
+    let (head, rest) = payload.split_first_mut().ok_or(EncodeError::BufferTooSmall)?;
+    *head = seq;
+    Ok(1 + encode_message(msg, rest)?)
+}
+
+/// The longest message as it follows the sequence number in a frame: the
+/// room [`encode_message`] may need.
+pub const MAX_MESSAGE_LEN: usize = Message::POSTCARD_MAX_SIZE;
+
+/// Writes `msg` as it follows the sequence number in a frame (its postcard
+/// serialization) at the start of `out`; its length. At most
+/// [`MAX_MESSAGE_LEN`] bytes.
+#[inline(always)]
+pub fn encode_message(msg: &Message, out: &mut [u8]) -> Result<usize, EncodeError> {
     match msg {
-        Message::Ray(ray) => encode_ray_body(seq, RAY_TAG, ray, payload),
-        Message::GrantedRay(ray) => encode_ray_body(seq, GRANTED_RAY_TAG, ray, payload),
+        Message::Ray(ray) => encode_ray_message(RAY_TAG, ray, out),
+        Message::GrantedRay(ray) => encode_ray_message(GRANTED_RAY_TAG, ray, out),
         // The small messages `decode_payload` reads by hand, written so.
-        Message::Ack(ack) => put_bytes(&[seq, ACK_TAG, *ack], payload),
-        Message::Nak(nak) => put_bytes(&[seq, NAK_TAG, *nak], payload),
-        Message::Space => put_bytes(&[seq, SPACE_TAG], payload),
-        Message::Grant(n @ 0..0x80) => put_bytes(&[seq, GRANT_TAG, *n as u8], payload),
+        Message::Ack(ack) => put_bytes(&[ACK_TAG, *ack], out),
+        Message::Nak(nak) => put_bytes(&[NAK_TAG, *nak], out),
+        Message::Space => put_bytes(&[SPACE_TAG], out),
+        Message::Grant(n @ 0..0x80) => put_bytes(&[GRANT_TAG, *n as u8], out),
         Message::RayReply(RayReply { tag: tag @ 0..0x80, accepted }) => {
-            put_bytes(&[seq, RAY_REPLY_TAG, *tag as u8, u8::from(*accepted)], payload)
+            put_bytes(&[RAY_REPLY_TAG, *tag as u8, u8::from(*accepted)], out)
         }
-        _ => {
-            let (head, rest) = payload.split_first_mut().ok_or(EncodeError::BufferTooSmall)?;
-            *head = seq;
-            Ok(1 + postcard::to_slice(msg, rest).map_err(|_| EncodeError::BufferTooSmall)?.len())
-        }
+        _ => Ok(postcard::to_slice(msg, out).map_err(|_| EncodeError::BufferTooSmall)?.len()),
     }
 }
 
@@ -206,37 +229,18 @@ fn put_bytes(bytes: &[u8], payload: &mut [u8]) -> Result<usize, EncodeError> {
     Ok(bytes.len())
 }
 
-/// The body of a frame carrying a ray, written as postcard writes it (the
-/// sequence number, the variant's index, the ray's wire form as a byte
-/// string: its length in one varint byte, as `RAY_MAX_LEN < 128`) but with
-/// the ray packed straight into place. Through serde the ray was packed into
-/// a zeroed scratch buffer and copied, and the variant dispatched: a tenth
-/// of a hop's instructions at each end, for the message that is most of the
-/// traffic.
-fn encode_ray_body(seq: Seq, tag: u8, ray: &RayMsg, payload: &mut [u8]) -> Result<usize, EncodeError> {
-    let (head, rest) = payload.split_first_mut().ok_or(EncodeError::BufferTooSmall)?;
-    *head = seq;
-    Ok(1 + encode_ray_message(tag, ray, rest)?)
-}
-
-/// A ray's message as it follows the sequence number: the variant's index,
-/// the wire form's length and the wire form.
+/// A ray's message as it follows the sequence number, as postcard writes it
+/// (the variant's index, the ray's wire form as a byte string: its length in
+/// one varint byte, as `RAY_MAX_LEN < 128`) but with the ray packed straight
+/// into place. Through serde the ray was packed into a zeroed scratch buffer
+/// and copied, and the variant dispatched: a tenth of a hop's instructions
+/// at each end, for the message that is most of the traffic.
 #[inline(always)]
 fn encode_ray_message(tag: u8, ray: &RayMsg, out: &mut [u8]) -> Result<usize, EncodeError> {
     let (head, bytes) = out.split_at_mut_checked(2).ok_or(EncodeError::BufferTooSmall)?;
     let n = ray_wire::encode_ray(ray, bytes).ok_or(EncodeError::BufferTooSmall)?;
     head.copy_from_slice(&[tag, n as u8]);
     Ok(2 + n)
-}
-
-/// Writes `msg` as it follows the sequence number in a frame of its own
-/// (`encode_body`), for a batch; its length.
-fn encode_message(msg: &Message, out: &mut [u8]) -> Result<usize, EncodeError> {
-    match msg {
-        Message::Ray(ray) => encode_ray_message(RAY_TAG, ray, out),
-        Message::GrantedRay(ray) => encode_ray_message(GRANTED_RAY_TAG, ray, out),
-        _ => Ok(postcard::to_slice(msg, out).map_err(|_| EncodeError::BufferTooSmall)?.len()),
-    }
 }
 
 /// Incremental frame decoder with a fixed buffer.
@@ -431,7 +435,7 @@ fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<(Batch, Batch),
         return Err(DecodeError::Crc);
     }
     match body {
-        // A ray, read as `encode_ray_body` writes it: no serde dispatch,
+        // A ray, read as `encode_ray_message` writes it: no serde dispatch,
         // and written straight into `out`.
         [seq, tag @ (RAY_TAG | GRANTED_RAY_TAG), len @ 0..0x80, rest @ ..] => {
             let (bytes, trailer) = rest.split_at_checked(usize::from(*len)).ok_or(DecodeError::Body)?;

@@ -31,8 +31,8 @@ pub mod site;
 
 pub use board::{BoardId, BoardInfo, BoardKind, ClockSource, FirmwareVersion, PeerNote};
 pub use frame::{
-    DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_PAYLOAD_LEN, encode_batch, encode_frame,
-    encode_parts,
+    DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_MESSAGE_LEN, MAX_PAYLOAD_LEN, encode_batch,
+    encode_encoded, encode_frame, encode_message, encode_parts,
 };
 pub use health::{LinkHealth, PortHealth};
 pub use message::*;

@@ -253,6 +253,18 @@ proptest! {
         prop_assert_eq!(decode_all(&mut dec, &bytes), vec![Ok(frame)]);
     }
 
+    /// A message kept in its wire form (a sender's window) is postcard's
+    /// serialization of it, and framed alone makes the message's frame.
+    #[test]
+    fn a_message_kept_in_its_wire_form_frames_as_itself(frame in arb_frame()) {
+        let mut bytes = [0u8; MAX_MESSAGE_LEN];
+        let n = encode_message(&frame.msg, &mut bytes).unwrap();
+        prop_assert_eq!(&bytes[..n], &wire(&frame.msg)[..]);
+        let mut out = [0u8; MAX_FRAME_LEN];
+        let m = encode_encoded(frame.seq, &bytes[..n], frame.ack, &mut out).unwrap();
+        prop_assert_eq!(&out[..m], &encode(&frame)[..]);
+    }
+
     /// A channel decodes into one frame it keeps: a frame decoded replaces
     /// all of it (one without an acknowledgement clears the last one's), a
     /// damaged one leaves it as it was.
@@ -499,6 +511,21 @@ fn numbered(seq: Seq, msgs: &[Message]) -> Vec<(Seq, &Message)> {
     msgs.iter().enumerate().map(|(i, m)| (seq.wrapping_add(i as u8), m)).collect()
 }
 
+/// A message's wire form as postcard writes it.
+fn wire(msg: &Message) -> Vec<u8> {
+    postcard::to_slice(msg, &mut [0u8; 512]).unwrap().to_vec()
+}
+
+/// `msgs` numbered from `seq` in their wire form, as a sender's window keeps them.
+fn encoded(seq: Seq, msgs: &[Message]) -> Vec<(Seq, Vec<u8>)> {
+    numbered(seq, msgs).into_iter().map(|(seq, m)| (seq, wire(m))).collect()
+}
+
+/// What `encode_batch` takes of `encoded`.
+fn borrowed(encoded: &[(Seq, Vec<u8>)]) -> impl Iterator<Item = (Seq, &[u8])> {
+    encoded.iter().map(|(seq, bytes)| (*seq, bytes.as_slice()))
+}
+
 /// The frames a batch of `msgs` from `seq` should decode to.
 fn batch_frames(seq: Seq, msgs: &[Message], ack: Option<Seq>) -> Vec<Result<Frame, DecodeError>> {
     numbered(seq, msgs)
@@ -528,7 +555,7 @@ proptest! {
     ) {
         let msgs: Vec<Message> = msgs.into_iter().chain(rays.into_iter().map(Message::GrantedRay)).collect();
         let mut out = [0u8; MAX_FRAME_LEN];
-        let (n, taken) = encode_batch(numbered(seq, &msgs), ack, &mut out).unwrap();
+        let (n, taken) = encode_batch(borrowed(&encoded(seq, &msgs)), ack, &mut out).unwrap();
         let head = 3 + usize::from(ack.is_some());
         let sizes: Vec<usize> = msgs.iter().map(postcard_len).collect();
         let used: usize = head + sizes[..taken].iter().sum::<usize>() + 4;
@@ -543,7 +570,7 @@ proptest! {
             let mut body = vec![seq, 0x7F, taken as u8 | if ack.is_some() { 0x80 } else { 0 }];
             body.extend(ack);
             for m in &msgs[..taken] {
-                body.extend_from_slice(postcard::to_slice(m, &mut [0u8; 512]).unwrap());
+                body.extend_from_slice(&wire(m));
             }
             prop_assert_eq!(&out[..n], &payload_frame(&body, &[])[..]);
         }
@@ -560,7 +587,7 @@ proptest! {
         next in arb_frame(),
     ) {
         let mut out = [0u8; MAX_FRAME_LEN];
-        let (n, _) = encode_batch(numbered(200, &msgs), Some(3), &mut out).unwrap();
+        let (n, _) = encode_batch(borrowed(&encoded(200, &msgs)), Some(3), &mut out).unwrap();
         let mut bytes = out[..n].to_vec();
         let i = 1 + at.index(n - 2);
         bytes[i] ^= flip;
@@ -574,9 +601,9 @@ proptest! {
 #[test]
 fn a_batch_ends_at_a_gap_in_sequence_numbers() {
     let msgs = [Message::Space, Message::Grant(3), Message::Space];
-    let frames = [(4, &msgs[0]), (5, &msgs[1]), (7, &msgs[2])];
+    let frames = [(4, wire(&msgs[0])), (5, wire(&msgs[1])), (7, wire(&msgs[2]))];
     let mut out = [0u8; MAX_FRAME_LEN];
-    let (n, taken) = encode_batch(frames, None, &mut out).unwrap();
+    let (n, taken) = encode_batch(borrowed(&frames), None, &mut out).unwrap();
     assert_eq!(taken, 2);
     assert_eq!(decode_all(&mut FrameDecoder::new(), &out[..n]), batch_frames(4, &msgs[..2], None));
     // Nothing to send is an error, not an empty frame.
@@ -660,7 +687,7 @@ fn sliding_staggers_the_rows_of_any_start_and_keeps_staggered_columns() {
 fn a_batch_message_put_back_comes_again_before_any_byte() {
     let msgs = [Message::Grant(1), Message::Space, Message::Grant(3)];
     let mut out = [0u8; MAX_FRAME_LEN];
-    let (n, _) = encode_batch(numbered(10, &msgs), Some(4), &mut out).unwrap();
+    let (n, _) = encode_batch(borrowed(&encoded(10, &msgs)), Some(4), &mut out).unwrap();
     let mut dec = FrameDecoder::new();
     let mut bytes = &out[..n];
     let first = dec.decode(&mut bytes).unwrap().unwrap();

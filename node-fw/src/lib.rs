@@ -33,6 +33,7 @@ pub mod slide;
 pub mod sphere;
 pub mod subregion;
 pub mod wide;
+pub mod window;
 pub mod wiring;
 
 pub use cube_box::CubeBox;

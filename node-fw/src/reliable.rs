@@ -23,11 +23,12 @@
 //! One exception to "no data before `Sync`": a hello of another protocol
 //! version, so that a peer that predates `Sync` is still told apart.
 
-use heapless::Deque;
 use link_proto::{
     DecodeError, EncodeError, Frame, FrameDecoder, MAX_FRAME_LEN, Message, PROTOCOL_VERSION, Seq,
-    encode_batch, encode_parts,
+    encode_batch, encode_encoded, encode_parts,
 };
+
+use crate::window::Window;
 
 /// Sequence numbers wrap at 2^8; a window is far smaller (see
 /// [`Channel::new`]), so `a` precedes `b` when the forward distance from `a`
@@ -89,8 +90,8 @@ impl core::iter::Sum for ChannelStats {
 /// One direction-pair of a reliable link: sends our data, receives theirs.
 #[derive(Debug)]
 pub struct Channel<const W: usize> {
-    /// Unacknowledged data frames, oldest first.
-    unacked: Deque<Frame, W>,
+    /// Unacknowledged data messages, oldest first, in their wire form.
+    unacked: Window<W>,
     /// Sequence number of the next new data frame.
     next_seq: Seq,
     /// Index in `unacked` of the next frame to write.
@@ -151,7 +152,7 @@ impl<const W: usize> Channel<W> {
         // the window is under half their space.
         const { assert!(W < 0x80, "a window must be under half the sequence space") };
         Self {
-            unacked: Deque::new(),
+            unacked: Window::new(),
             next_seq: 0,
             resend_from: 0,
             written: 0,
@@ -206,13 +207,13 @@ impl<const W: usize> Channel<W> {
         if self.unacked.is_full() {
             return Err(msg);
         }
-        let frame = Frame::new(self.next_seq, msg);
-        match self.unacked.push_back(frame) {
+        // Encoded once, into its slot (a message always fits one).
+        match self.unacked.push(self.next_seq, &msg) {
             Ok(()) => {
                 self.next_seq = self.next_seq.wrapping_add(1);
                 Ok(())
             }
-            Err(frame) => Err(frame.msg),
+            Err(_) => Err(msg),
         }
     }
 
@@ -337,12 +338,7 @@ impl<const W: usize> Channel<W> {
     fn restart_stream(&mut self) {
         self.peer_restarted = true;
         self.stats.peer_restarts += 1;
-        let mut seq: Seq = 0;
-        for frame in self.unacked.iter_mut() {
-            frame.seq = seq;
-            seq = seq.wrapping_add(1);
-        }
-        self.next_seq = seq;
+        self.next_seq = self.unacked.renumber(0);
         self.resend_from = 0;
         self.written = 0;
         self.synced = false;
@@ -351,8 +347,8 @@ impl<const W: usize> Channel<W> {
 
     /// Drops every frame up to and including `seq` from the window.
     fn acknowledged(&mut self, seq: Seq) {
-        while let Some(front) = self.unacked.front() {
-            if !(front.seq == seq || precedes(front.seq, seq)) {
+        while let Some(front) = self.unacked.front_seq() {
+            if !(front == seq || precedes(front, seq)) {
                 break;
             }
             self.unacked.pop_front();
@@ -433,11 +429,10 @@ impl<const W: usize> Channel<W> {
     /// bytes and the frames they hold.
     fn encode_due(&self, ack: Option<Seq>, buf: &mut [u8]) -> Result<(usize, usize), EncodeError> {
         if self.unacked.len() - self.resend_from > 1 {
-            let due = self.unacked.iter().skip(self.resend_from).map(|f| (f.seq, &f.msg));
-            return encode_batch(due, ack, buf);
+            return encode_batch(self.unacked.iter_from(self.resend_from), ack, buf);
         }
-        let frame = self.unacked.iter().nth(self.resend_from).ok_or(EncodeError::BufferTooSmall)?;
-        Ok((encode_parts(frame.seq, &frame.msg, ack, buf)?, 1))
+        let (seq, message) = self.unacked.get(self.resend_from).ok_or(EncodeError::BufferTooSmall)?;
+        Ok((encode_encoded(seq, message, ack, buf)?, 1))
     }
 
     /// Whether an acknowledgement with no data frame to ride on should go in
