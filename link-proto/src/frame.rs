@@ -205,7 +205,7 @@ pub const MAX_MESSAGE_LEN: usize = Message::POSTCARD_MAX_SIZE;
 /// Writes `msg` as it follows the sequence number in a frame (its postcard
 /// serialization) at the start of `out`; its length. At most
 /// [`MAX_MESSAGE_LEN`] bytes.
-#[inline(always)]
+#[inline(never)]
 pub fn encode_message(msg: &Message, out: &mut [u8]) -> Result<usize, EncodeError> {
     match msg {
         Message::Ray(ray) => encode_ray_message(RAY_TAG, ray, out),

@@ -53,15 +53,15 @@ impl Default for CostModel {
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (four frames on a board): one end of a hop (the ray in
     /// its compact wire form, the reply carrying the ray's ack, the reply's
-    /// ack alone every fourth reply) 1 603.3, and of a ray reply with its ack
-    /// alone every fourth time 609.0, which stands for every short message; a
-    /// ray end is charged the difference, 1 002 (the UART's bytes are the link
+    /// ack alone every fourth reply) 1 506.9, and of a ray reply with its ack
+    /// alone every fourth time 545.0, which stands for every short message; a
+    /// ray end is charged the difference, 962 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every fourth ray) 1 112.2; of one in a batch of four in one frame
-    /// 943.8. The rays are half primaries from the eye,
+    /// every fourth ray) 1 062.2; of one in a batch of four in one frame
+    /// 911.8. The rays are half primaries from the eye,
     /// half reflections from inside the grid with half their pixel's credit
     /// (39.0 bytes a frame). A node's end of a retirement (the host's acks
-    /// taken) 1 437.3 with one record, 3 681.6 with six: 449 a further record.
+    /// taken) 1 292.9 with one record, 3 609.4 with six: 463 a further record.
     fn default() -> Self {
         Self {
             cube_step: 109,
@@ -69,12 +69,12 @@ impl Default for CostModel {
             trace: 278,
             shade: 6_941,
             create: 2_785,
-            ray_message: 1_002,
-            granted_ray: 1_123,
-            batched_ray: 947,
-            short_message: 616,
-            retire_message: 1_442,
-            retire_record: 449,
+            ray_message: 962,
+            granted_ray: 1_062,
+            batched_ray: 912,
+            short_message: 545,
+            retire_message: 1_293,
+            retire_record: 463,
             pass: 0,
         }
     }
