@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Where a kernel's instructions go, function by function, on the emulated
 # Cortex-M3: `hop_granted` (one end of a hop on a grant, the default),
-# `trace` (a received ray's walk set-up) or `reply` (a short message's end). Builds the `kernels` binary with the
-# `profile` feature and PROFILE_KERNEL set (it then runs only that kernel),
+# `trace` (a received ray's walk set-up), `reply` (a short message's end) or
+# `retire_batch` (retirements of six records, the host's end included, per
+# message). Builds the `kernels` binary with the `profile` feature and PROFILE_KERNEL set (it then runs only that kernel),
 # runs it under QEMU one instruction at a time (-singlestep -d exec), and sums
 # the instructions each function executed from the kernel's entry on, per
 # unit. Functions inlined into the kernel (for the hop, the reliable
@@ -16,7 +17,8 @@ case "$KERNEL" in
     hop_granted) ENTRY=kernels::granted_hops ;;
     trace) ENTRY=kernels::walk_setups ;;
     reply) ENTRY=kernels::replies ;;
-    *) echo "error: no kernel $KERNEL to profile (hop_granted, trace or reply)" >&2; exit 2 ;;
+    retire_batch) ENTRY=kernels::retirements ;;
+    *) echo "error: no kernel $KERNEL to profile (hop_granted, trace, reply or retire_batch)" >&2; exit 2 ;;
 esac
 command -v python3 >/dev/null || { echo "error: python3 is needed to sum the trace" >&2; exit 1; }
 

@@ -384,6 +384,7 @@ const RETIRE_BATCH: usize = 6;
 /// different pixels): the node's end alone, as the in-memory board charges
 /// it (the message built, framed and written; the host's acks, which go
 /// alone every half window, taken). Per message.
+#[cfg_attr(feature = "profile", inline(never))]
 fn retirements(timer: &mut Timer, rays: &[RayMsg], per: usize) -> (u64, u64) {
     let (mut node, mut host) = channel_pair();
     let mut wire: Wire = (heapless::Vec::new(), [0; MAX_FRAME_LEN]);
@@ -512,7 +513,8 @@ fn memcpy_is_exact() -> bool {
 }
 
 /// With the `profile` feature, only the kernel that `PROFILE_KERNEL` names at
-/// build time (`hop_granted` unless it names `trace` or `reply`), for
+/// build time (`hop_granted` unless it names `trace`, `reply` or
+/// `retire_batch`), for
 /// scripts/profile-kernel.sh, which traces it from its entry on: what comes
 /// before is set-up.
 fn profile(timer: &mut Timer, out: &mut Out, grid: &Grid) -> ! {
@@ -521,6 +523,7 @@ fn profile(timer: &mut Timer, out: &mut Out, grid: &Grid) -> ! {
     let (name, (ticks, n)) = match option_env!("PROFILE_KERNEL") {
         Some("trace") => ("trace", walk_setups(timer, &rays)),
         Some("reply") => ("reply", replies(timer, &wire_rays(&rays))),
+        Some("retire_batch") => ("retire_batch", retirements(timer, &wire_rays(&rays), 6)),
         _ => ("hop_granted", granted_hops(timer, &wire_rays(&rays))),
     };
     let _ = writeln!(out, "kernel {name} {} {n}", per_unit_x100(ticks, n));
