@@ -227,7 +227,7 @@ const KNOWN_FLAGS: u8 = RGB_ZERO | ONE_RAY | CREDIT_MASK | BACKGROUND_MASK;
 /// The longest record: flags, four five-byte varints, a long credit and the counts.
 const RECORD_MAX_LEN: usize = 1 + 5 + 15 + 8 + 2 + 1;
 /// The longest wire form of a message's records.
-const WIRE_MAX_LEN: usize = PACKED_MAX + RECORD_MAX_LEN;
+pub(crate) const WIRE_MAX_LEN: usize = PACKED_MAX + RECORD_MAX_LEN;
 const _: () = assert!(WIRE_MAX_LEN < 128, "the byte string's length must stay one varint byte");
 
 fn flags_of(r: &Retire) -> u8 {
@@ -236,7 +236,9 @@ fn flags_of(r: &Retire) -> u8 {
 
 fn flags_with(r: &Retire, credit: credit::Form) -> u8 {
     let mut flags = credit.code() << CREDIT_SHIFT;
-    if r.rgb == [0; 3] {
+    // Component by component: an array's `==` is a `memcmp` call on a Cortex-M3.
+    let [red, green, blue] = r.rgb;
+    if red | green | blue == 0 {
         flags |= RGB_ZERO;
     }
     if r.spawned == 0 && r.rays == 1 {
@@ -292,15 +294,23 @@ fn decode_record(r: &mut Reader<'_>) -> Option<Retire> {
     (flags_of(&record) == flags).then_some(record)
 }
 
+impl Retirements {
+    /// Writes the records' wire form at the start of `out` (the packed
+    /// records, then the last); its length, at most [`WIRE_MAX_LEN`], or
+    /// `None` when `out` is shorter.
+    pub(crate) fn encode_wire(&self, out: &mut [u8]) -> Option<usize> {
+        let packed = self.packed_bytes();
+        out.get_mut(..packed.len())?.copy_from_slice(packed);
+        let mut w = Writer::new(out.get_mut(packed.len()..)?);
+        encode_record(&self.last, &mut w)?;
+        Some(packed.len() + w.at)
+    }
+}
+
 impl Serialize for Retirements {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         let mut buf = [0u8; WIRE_MAX_LEN];
-        let at = usize::from(self.packed_len);
-        let (packed, rest) = buf.split_at_mut(at.min(PACKED_MAX));
-        packed.copy_from_slice(self.packed.get(..at).unwrap_or_default());
-        let mut w = Writer::new(rest);
-        encode_record(&self.last, &mut w).ok_or_else(|| S::Error::custom("records too long"))?;
-        let len = at + w.at;
+        let len = self.encode_wire(&mut buf).ok_or_else(|| S::Error::custom("records too long"))?;
         serializer.serialize_bytes(buf.get(..len).unwrap_or_default())
     }
 }
