@@ -61,7 +61,7 @@ impl Default for CostModel {
     /// 911.8. The rays are half primaries from the eye,
     /// half reflections from inside the grid with half their pixel's credit
     /// (39.0 bytes a frame). A node's end of a retirement (the host's acks
-    /// taken) 1 292.9 with one record, 3 609.4 with six: 463 a further record.
+    /// taken) 1 134.7 with one record, 3 345.3 with six: 442 a further record.
     fn default() -> Self {
         Self {
             cube_step: 109,
@@ -73,8 +73,8 @@ impl Default for CostModel {
             granted_ray: 1_062,
             batched_ray: 912,
             short_message: 545,
-            retire_message: 1_293,
-            retire_record: 463,
+            retire_message: 1_135,
+            retire_record: 442,
             pass: 0,
         }
     }
