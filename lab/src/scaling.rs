@@ -71,6 +71,14 @@ impl ScalingRow {
     pub fn messaging_share(&self) -> f64 {
         self.busy.messaging as f64 / self.busy.total().max(1) as f64
     }
+
+    /// Bytes on the neighbour links per ray passed between nodes: every
+    /// frame's framing, and the grants and other messages that flow back,
+    /// included (acknowledgements, which the in-memory board's message mode
+    /// does not send, are not); `None` with no ray passed (one node).
+    pub fn bytes_per_hop(&self) -> Option<f64> {
+        (self.busy.rays_sent > 0).then(|| self.neighbour_bytes as f64 / self.busy.rays_sent as f64)
+    }
 }
 
 /// Runs every configuration; writes `scaling.csv`, `scaling.md` and
@@ -152,13 +160,13 @@ fn run(
 
 fn csv(rows: &[ScalingRow]) -> String {
     let mut s = String::from(
-        "array,nodes,layout,makespan,efficiency,messaging_share,work_ratio,compute,setup,messaging,neighbour_bytes,host_bytes,host_link_busiest\n",
+        "array,nodes,layout,makespan,efficiency,messaging_share,work_ratio,compute,setup,messaging,neighbour_bytes,host_bytes,host_link_busiest,ray_hops,bytes_per_hop\n",
     );
     for r in rows {
         let [x, y, z] = r.array;
         let _ = writeln!(
             s,
-            "{x}x{y}x{z},{},{},{},{:.4},{:.4},{:.3},{},{},{},{},{},{:.3}",
+            "{x}x{y}x{z},{},{},{},{:.4},{:.4},{:.3},{},{},{},{},{},{:.3},{},{}",
             r.nodes,
             r.layout.name(),
             r.makespan,
@@ -170,7 +178,9 @@ fn csv(rows: &[ScalingRow]) -> String {
             r.busy.messaging,
             r.neighbour_bytes,
             r.host_bytes,
-            r.host_link_busiest
+            r.host_link_busiest,
+            r.busy.rays_sent,
+            r.bytes_per_hop().map_or(String::new(), |b| format!("{b:.1}"))
         );
     }
     s
@@ -198,18 +208,22 @@ fn table(cfg: &ScalingConfig, rows: &[ScalingRow], by_shape: bool) -> String {
     s.push_str(
         "Messaging, set-up and compute are shares of all nodes' busy cycles; the busiest host link \
          is the share of the makespan its wire was busy (near 100%, pixels waiting to reach the \
-         host bound the frame).\n\n",
+         host bound the frame); bytes a hop are the neighbour links' bytes over the rays passed \
+         between nodes (framing, grants and batches included; acknowledgements, which the \
+         in-memory board does not send, not).\n\n",
     );
     s.push_str(if by_shape { "| array " } else { "| S " });
-    s.push_str("| cut | makespan (cycles) | E | messaging | set-up | compute | work / one node | busiest host link |\n");
-    s.push_str("|---|---|---|---|---|---|---|---|---|\n");
+    s.push_str(
+        "| cut | makespan (cycles) | E | messaging | set-up | compute | work / one node | busiest host link | bytes a hop |\n",
+    );
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         let share = |x: u64| 100.0 * x as f64 / r.busy.total().max(1) as f64;
         let [x, y, z] = r.array;
         let first = if by_shape { format!("{x}x{y}x{z}") } else { r.nodes.to_string() };
         let _ = writeln!(
             s,
-            "| {first} | {} | {:.3e} | {:.3} | {:.0}% | {:.0}% | {:.0}% | {:.2} | {:.0}% |",
+            "| {first} | {} | {:.3e} | {:.3} | {:.0}% | {:.0}% | {:.0}% | {:.2} | {:.0}% | {} |",
             r.layout.name(),
             r.makespan as f64,
             r.efficiency,
@@ -217,7 +231,8 @@ fn table(cfg: &ScalingConfig, rows: &[ScalingRow], by_shape: bool) -> String {
             share(r.busy.setup),
             share(r.busy.compute),
             r.work_ratio,
-            100.0 * r.host_link_busiest
+            100.0 * r.host_link_busiest,
+            r.bytes_per_hop().map_or("-".into(), |b| format!("{b:.1}"))
         );
     }
     s

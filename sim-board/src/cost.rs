@@ -112,6 +112,7 @@ impl CostModel {
             pass: if w.is_busy() { self.pass } else { 0 },
             polls: u64::from(w.is_busy()),
             sent: u64::from(w.sent),
+            rays_sent: u64::from(w.rays_sent),
         }
     }
 }
@@ -135,6 +136,8 @@ pub struct Busy {
     pub polls: u64,
     /// Messages sent, to neighbours and the host (a count, not cycles).
     pub sent: u64,
+    /// Of those, rays: the hops rays made from this node (a count).
+    pub rays_sent: u64,
 }
 
 impl Busy {
@@ -161,6 +164,7 @@ impl std::ops::AddAssign for Busy {
         self.pass += other.pass;
         self.polls += other.polls;
         self.sent += other.sent;
+        self.rays_sent += other.rays_sent;
     }
 }
 
@@ -176,6 +180,7 @@ impl std::ops::Sub for Busy {
             pass: self.pass.saturating_sub(earlier.pass),
             polls: self.polls.saturating_sub(earlier.polls),
             sent: self.sent.saturating_sub(earlier.sent),
+            rays_sent: self.rays_sent.saturating_sub(earlier.rays_sent),
         }
     }
 }

@@ -18,7 +18,7 @@ use crate::session::clock::Clock;
 
 /// Busy cycles by kind, and waiting.
 fn busy_json(b: &Busy, waiting: u64) -> serde_json::Value {
-    json!({"compute": b.compute, "setup": b.setup, "messaging": b.messaging, "pass": b.pass, "waiting": waiting, "polls": b.polls})
+    json!({"compute": b.compute, "setup": b.setup, "messaging": b.messaging, "pass": b.pass, "waiting": waiting, "polls": b.polls, "rays_sent": b.rays_sent})
 }
 
 /// Per neighbour port and the host port: bytes sent and received, and the
