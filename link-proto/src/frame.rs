@@ -333,7 +333,14 @@ impl FrameDecoder {
         if !bytes.is_empty() {
             self.again = Batch::NONE;
         }
-        while !bytes.is_empty() {
+        while let Some((&first, after)) = bytes.split_first() {
+            // A frame's leading delimiter with nothing before it: skipped at
+            // once (every frame has one; found and closed as an empty frame,
+            // it cost a tenth of a received ray frame's framing).
+            if first == 0 && self.len == 0 && !self.discarding {
+                *bytes = after;
+                continue;
+            }
             let (run, closed, rest) = match cobs::first_zero(bytes) {
                 Some(at) => {
                     (bytes.get(..at).unwrap_or_default(), true, bytes.get(at + 1..).unwrap_or_default())
