@@ -11,8 +11,6 @@
 
 use clock_tree::nucleo_f413zh as nucleo;
 
-use node_fw::reliable::WINDOW;
-
 use crate::cost::LinkModel;
 
 /// How a board moves a byte between a UART's data register and memory.
@@ -139,7 +137,7 @@ impl LinkPreset {
                 baud: nucleo::NEIGHBOUR_BAUD as u64,
                 transfer: Transfer::Interrupt,
                 latency: 2_000,
-                capacity: WINDOW,
+                capacity: 8,
             },
             LinkPreset::Ideal => LinkSpec {
                 clock_hz: 100_000_000,
@@ -156,7 +154,7 @@ impl LinkPreset {
                 baud: 1_000_000_000,
                 transfer: Transfer::Polled,
                 latency: 2_000,
-                capacity: WINDOW,
+                capacity: 8,
             },
         }
     }
@@ -195,9 +193,9 @@ impl LinkPreset {
     pub const fn host(self) -> LinkSpec {
         let n = self.neighbour();
         match self {
-            // A board's host channel holds its window.
-            LinkPreset::F413 => LinkSpec { baud: nucleo::HOST_BAUD as u64, ..n },
-            LinkPreset::Emulated => n,
+            // A board's host channel has a window of eight frames.
+            LinkPreset::F413 => LinkSpec { baud: nucleo::HOST_BAUD as u64, capacity: 8, ..n },
+            LinkPreset::Emulated => LinkSpec { capacity: 8, ..n },
             LinkPreset::Ideal => LinkSpec { capacity: 64, ..n },
         }
     }
