@@ -44,7 +44,7 @@ pub const RAYS: usize = PROFILE.rays;
 /// ack frame every fourth ray, not every second as with four (each end of a
 /// granted hop 1 651 instructions against 1 759); the channels' 3.8 KiB more
 /// RAM leaves the small board 18 KiB of stack.
-pub const WINDOW: usize = 8;
+pub const WINDOW: usize = node_fw::reliable::WINDOW;
 /// Received messages waiting per port.
 pub const INBOX: usize = 2;
 

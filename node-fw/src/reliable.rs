@@ -30,6 +30,12 @@ use link_proto::{
 
 use crate::window::Window;
 
+/// Unacknowledged frames a channel keeps on every link of the array, the
+/// host's included. Both ends must keep the same: a receiver acknowledges
+/// alone once it has taken half a window, counting on the sender to have
+/// the other half to send meanwhile.
+pub const WINDOW: usize = 8;
+
 /// Sequence numbers wrap at 2^8; a window is far smaller (see
 /// [`Channel::new`]), so `a` precedes `b` when the forward distance from `a`
 /// to `b` is less than half the space.

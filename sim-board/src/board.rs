@@ -6,7 +6,7 @@ use std::collections::{BTreeMap, VecDeque};
 
 use link_proto::{BoardId, BoardInfo, Hello, Message};
 use node_fw::Port;
-use node_fw::reliable::{Channel, ChannelStats};
+use node_fw::reliable::{Channel, ChannelStats, WINDOW};
 use rayon::prelude::*;
 
 pub use crate::config::{SIM_INBOX, SimConfig, SimFramed, SimNode};
@@ -151,7 +151,7 @@ pub struct Board {
     rounds: u64,
     /// Framed mode: the host's channel to each node, what waits to enter it,
     /// and the fault generator of each host-to-node wire.
-    host_channels: Vec<Channel<8>>,
+    host_channels: Vec<Channel<WINDOW>>,
     host_backlog: Vec<VecDeque<Message>>,
     host_rng: Vec<FaultRng>,
     /// Arrival time of the latest node-to-host message.

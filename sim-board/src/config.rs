@@ -2,6 +2,7 @@
 
 use node_fw::Node;
 use node_fw::framed::FramedLinks;
+use node_fw::reliable::WINDOW;
 
 use crate::cost::CostModel;
 use crate::faults::Faults;
@@ -10,8 +11,9 @@ use crate::link_spec::{LinkPreset, LinkSpec};
 /// Messages a simulated node's framed port holds until the node takes them.
 pub const SIM_INBOX: usize = 16;
 
-/// A node's links when they are byte streams: reliable channels, window 8.
-pub type SimFramed = FramedLinks<8, SIM_INBOX>;
+/// A node's links when they are byte streams: reliable channels with a
+/// board's window.
+pub type SimFramed = FramedLinks<WINDOW, SIM_INBOX>;
 
 /// The node firmware as the board runs it: 2048 spheres, 32768 sphere
 /// references, 32768 cubes (a 32^3 grid on one node) and 4096 ray slots

@@ -24,8 +24,8 @@ use crate::session::cabling::{self, Reported};
 use crate::session::clock::HostMicros;
 use crate::session::transport::{Endpoint, RunEnd, Transport};
 
-/// Unacknowledged frames per node link on the host's side.
-const WINDOW: usize = 8;
+/// Unacknowledged frames per node link on the host's side: as the nodes keep.
+const WINDOW: usize = node_fw::reliable::WINDOW;
 /// Microseconds without an acknowledgement before the host resends.
 const RESEND_AFTER_US: u64 = 250_000;
 /// Bytes the host queues per device beyond what the device took.
