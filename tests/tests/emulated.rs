@@ -366,8 +366,11 @@ fn emulated_boards_under_link_faults_render_the_clean_image() {
     );
     assert!(faulty.frame.sums == clean.frame.sums, "the faults changed the image");
     assert_eq!(faulty.frame.rays_created, faulty.frame.rays_terminated, "every ray accounted for");
-    // The faults happened: the host's channels saw damaged frames and resent.
-    assert!(faulty.links.corrupted > 0 && faulty.links.retransmitted > 0, "{:?}", faulty.links);
+    // The faults happened: the host's channels saw damaged frames. (Whether
+    // the host itself resends is chance: its few frames, many messages to a
+    // batch, may all get through; one run in test.sh's debug build resent
+    // none. The boards' resends, over thousands of frames, are checked next.)
+    assert!(faulty.links.corrupted > 0, "{:?}", faulty.links);
     // And the boards told the host of the damage they took, which the host
     // sees no other way.
     let told = link_troubles(&faulty);
