@@ -208,12 +208,8 @@ impl<const W: usize> Channel<W> {
     // Handing it back is the point: see `Links::try_send`.
     #[allow(clippy::result_large_err)]
     pub fn send(&mut self, msg: Message) -> Result<(), Message> {
-        // Before building a frame: a node offers what it has every poll, and
-        // against a full window each offer would copy a whole frame for nothing.
-        if self.unacked.is_full() {
-            return Err(msg);
-        }
-        // Encoded once, into its slot (a message always fits one).
+        // Encoded once, into its slot; a full window refuses it before
+        // encoding (a message always fits a slot).
         match self.unacked.push(self.next_seq, &msg) {
             Ok(()) => {
                 self.next_seq = self.next_seq.wrapping_add(1);

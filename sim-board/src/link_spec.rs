@@ -165,10 +165,9 @@ impl LinkPreset {
     ///
     /// The emulated boards' is fitted to their running times: the 2x2x2
     /// array rendering the quick start's frame (64x64, 60 spheres, seed 3,
-    /// grid 16^3, static), each node's emulated running time less what the
-    /// in-memory board charges it, over its polls that did work, by least
-    /// squares, gives 12 347 instructions for the busiest node (three QEMU
-    /// runs, median; at the firmware whose channels skip a frame's leading
+    /// grid 16^3, static): the busiest node's emulated running time less
+    /// what the in-memory board charges it, over its polls that did work,
+    /// gives 12 347 instructions (three QEMU runs, median; at the firmware whose channels skip a frame's leading
     /// delimiter and return at once with no bytes, which took the emulated
     /// nodes' passes down); the 24x24 frame of `tests/tests/emulated.rs`
     /// gives 8 350 (five runs). One figure fits both only so far: the preset

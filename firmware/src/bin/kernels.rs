@@ -523,7 +523,7 @@ fn profile(timer: &mut Timer, out: &mut Out, grid: &Grid) -> ! {
     let (name, (ticks, n)) = match option_env!("PROFILE_KERNEL") {
         Some("trace") => ("trace", walk_setups(timer, &rays)),
         Some("reply") => ("reply", replies(timer, &wire_rays(&rays))),
-        Some("retire_batch") => ("retire_batch", retirements(timer, &wire_rays(&rays), 6)),
+        Some("retire_batch") => ("retire_batch", retirements(timer, &wire_rays(&rays), RETIRE_BATCH)),
         _ => ("hop_granted", granted_hops(timer, &wire_rays(&rays))),
     };
     let _ = writeln!(out, "kernel {name} {} {n}", per_unit_x100(ticks, n));
