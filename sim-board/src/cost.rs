@@ -51,17 +51,17 @@ impl Default for CostModel {
     /// the children it spawns later); an initial ray (pixel line, ray, entry
     /// cube) 2 784.6. Messages through a reliable channel, whose
     /// acknowledgements ride on data going back or, with none, go alone once
-    /// per half window (four frames on a board): one end of a hop (the ray in
+    /// per half window (eight frames on a board): one end of a hop (the ray in
     /// its compact wire form, the reply carrying the ray's ack, the reply's
-    /// ack alone every fourth reply) 1 457.6, and of a ray reply with its ack
-    /// alone every fourth time 511.6, which stands for every short message; a
-    /// ray end is charged the difference, 946 (the UART's bytes are the link
+    /// ack alone every eighth reply) 1 453.2, and of a ray reply with its ack
+    /// alone every eighth time 489.4, which stands for every short message; a
+    /// ray end is charged the difference, 964 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every fourth ray) 1 036.0; of one in a batch of four in one frame
-    /// 905.2. The rays are half primaries from the eye,
+    /// every eighth ray) 1 013.0; of one in a batch of four in one frame
+    /// 874.5. The rays are half primaries from the eye,
     /// half reflections from inside the grid with half their pixel's credit
     /// (39.0 bytes a frame). A node's end of a retirement (the host's acks
-    /// taken) 1 115.3 with one record, 3 330.9 with six: 443 a further record.
+    /// taken) 1 074.6 with one record, 3 273.1 with six: 440 a further record.
     fn default() -> Self {
         Self {
             cube_step: 109,
@@ -69,12 +69,12 @@ impl Default for CostModel {
             trace: 278,
             shade: 6_941,
             create: 2_785,
-            ray_message: 946,
-            granted_ray: 1_036,
-            batched_ray: 905,
-            short_message: 512,
-            retire_message: 1_115,
-            retire_record: 443,
+            ray_message: 964,
+            granted_ray: 1_013,
+            batched_ray: 875,
+            short_message: 489,
+            retire_message: 1_075,
+            retire_record: 440,
             pass: 0,
         }
     }

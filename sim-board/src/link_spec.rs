@@ -11,6 +11,8 @@
 
 use clock_tree::nucleo_f413zh as nucleo;
 
+use node_fw::reliable::WINDOW;
+
 use crate::cost::LinkModel;
 
 /// How a board moves a byte between a UART's data register and memory.
@@ -137,7 +139,7 @@ impl LinkPreset {
                 baud: nucleo::NEIGHBOUR_BAUD as u64,
                 transfer: Transfer::Interrupt,
                 latency: 2_000,
-                capacity: 8,
+                capacity: WINDOW,
             },
             LinkPreset::Ideal => LinkSpec {
                 clock_hz: 100_000_000,
@@ -154,7 +156,7 @@ impl LinkPreset {
                 baud: 1_000_000_000,
                 transfer: Transfer::Polled,
                 latency: 2_000,
-                capacity: 8,
+                capacity: WINDOW,
             },
         }
     }
@@ -167,25 +169,24 @@ impl LinkPreset {
     /// array rendering the quick start's frame (64x64, 60 spheres, seed 3,
     /// grid 16^3, static): the busiest node's emulated running time less
     /// what the in-memory board charges it, over its polls that did work,
-    /// gives 12 347 instructions (three QEMU runs, median; at the firmware whose channels skip a frame's leading
-    /// delimiter and return at once with no bytes, which took the emulated
-    /// nodes' passes down); the 24x24 frame of `tests/tests/emulated.rs`
-    /// gives 8 350 (five runs). One figure fits both only so far: the preset
-    /// takes 9 500, chosen so that the test frame's busiest node is charged
-    /// about a tenth too much (+10.2%) and the quick start's 18% too little
-    /// (docs/links.md). It is a mean over unlike
-    /// passes: the emulated nodes poll with work 0.8-1.3 times as often as
-    /// the in-memory ones (`busy_polls` in `loads.csv`: their messages
-    /// complete a few bytes at a time, so fewer arrive together), and per
-    /// emulated busy poll they spend 5 800-9 700 instructions beyond the
-    /// kernels, the busier nodes more. Tracing node 0 (QEMU `-singlestep -d exec`) finds its passes
+    /// gives 12 016 instructions (three QEMU runs, median, at windows of
+    /// sixteen frames); the 24x24 frame of `tests/tests/emulated.rs` gives
+    /// 7 837 (five runs). One figure fits both only so far: the preset takes
+    /// 9 000, chosen so that the test frame's busiest node is charged about
+    /// a tenth too much (+10.8%) and the quick start's a fifth too little
+    /// (-19.6%; docs/links.md). It is a mean over unlike passes: the
+    /// emulated nodes poll with work 1.25-1.47 times as often as the
+    /// in-memory ones (`busy_polls` in `loads.csv`: their messages complete
+    /// a few bytes at a time, so fewer arrive together), and per emulated
+    /// busy poll they spend 6 300-8 200 instructions beyond the kernels, the
+    /// busier frame more. Tracing node 0 (QEMU `-singlestep -d exec`) finds its passes
     /// moving every byte through a UART register, and the frame decoder
     /// copying what arrived a few bytes at a time. The other
     /// presets stand for boards whose UARTs move bytes by interrupt or DMA,
     /// whose pass is not measured yet: none is charged.
     pub const fn loop_pass(self) -> u64 {
         match self {
-            LinkPreset::Emulated => 9_500,
+            LinkPreset::Emulated => 9_000,
             LinkPreset::F413 | LinkPreset::Ideal => 0,
         }
     }
@@ -194,9 +195,9 @@ impl LinkPreset {
     pub const fn host(self) -> LinkSpec {
         let n = self.neighbour();
         match self {
-            // A board's host channel has a window of eight frames.
-            LinkPreset::F413 => LinkSpec { baud: nucleo::HOST_BAUD as u64, capacity: 8, ..n },
-            LinkPreset::Emulated => LinkSpec { capacity: 8, ..n },
+            // A board's host channel holds its window.
+            LinkPreset::F413 => LinkSpec { baud: nucleo::HOST_BAUD as u64, ..n },
+            LinkPreset::Emulated => n,
             LinkPreset::Ideal => LinkSpec { capacity: 64, ..n },
         }
     }
