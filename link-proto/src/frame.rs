@@ -10,9 +10,10 @@
 //! caught. [`FrameDecoder`] never panics and resynchronises on the next zero byte
 //! after garbage, a truncated frame or an oversize one.
 
-use crate::message::{Frame, Message, RayMsg, RayReply, Seq};
+use crate::message::{Frame, Message, RayReply, Seq};
+use crate::ray_wire::{self, OutgoingRay};
 use crate::retirements::{Retirements, WIRE_MAX_LEN};
-use crate::{cobs, crc32c, ray_wire};
+use crate::{cobs, crc32c};
 use postcard::experimental::max_size::MaxSize;
 use serde::Deserialize;
 
@@ -224,8 +225,8 @@ pub const MAX_MESSAGE_LEN: usize = Message::POSTCARD_MAX_SIZE;
 #[inline(never)]
 pub fn encode_message(msg: &Message, out: &mut [u8]) -> Result<usize, EncodeError> {
     match msg {
-        Message::Ray(ray) => encode_ray_message(RAY_TAG, ray, out),
-        Message::GrantedRay(ray) => encode_ray_message(GRANTED_RAY_TAG, ray, out),
+        Message::Ray(ray) => encode_ray_message(&OutgoingRay::of(ray, false), out),
+        Message::GrantedRay(ray) => encode_ray_message(&OutgoingRay::of(ray, true), out),
         Message::Retire(records) => encode_retire_message(records, out),
         // The small messages `decode_payload` reads by hand, written so.
         Message::Ack(ack) => put_bytes(&[ACK_TAG, *ack], out),
@@ -246,6 +247,13 @@ fn put_bytes(bytes: &[u8], payload: &mut [u8]) -> Result<usize, EncodeError> {
     Ok(bytes.len())
 }
 
+/// Writes the message `ray` stands for ([`OutgoingRay::message`]) as
+/// [`encode_message`] would, straight from where the ray lies; its length.
+#[inline(never)]
+pub fn encode_outgoing_ray(ray: &OutgoingRay<'_>, out: &mut [u8]) -> Result<usize, EncodeError> {
+    encode_ray_message(ray, out)
+}
+
 /// A ray's message as it follows the sequence number, as postcard writes it
 /// (the variant's index, the ray's wire form as a byte string: its length in
 /// one varint byte, as `RAY_MAX_LEN < 128`) but with the ray packed straight
@@ -253,9 +261,10 @@ fn put_bytes(bytes: &[u8], payload: &mut [u8]) -> Result<usize, EncodeError> {
 /// and copied, and the variant dispatched: a tenth of a hop's instructions
 /// at each end, for the message that is most of the traffic.
 #[inline(always)]
-fn encode_ray_message(tag: u8, ray: &RayMsg, out: &mut [u8]) -> Result<usize, EncodeError> {
+fn encode_ray_message(ray: &OutgoingRay<'_>, out: &mut [u8]) -> Result<usize, EncodeError> {
+    let tag = if ray.granted { GRANTED_RAY_TAG } else { RAY_TAG };
     let (head, bytes) = out.split_at_mut_checked(2).ok_or(EncodeError::BufferTooSmall)?;
-    let n = ray_wire::encode_ray(ray, bytes).ok_or(EncodeError::BufferTooSmall)?;
+    let n = ray_wire::encode_outgoing(ray, bytes).ok_or(EncodeError::BufferTooSmall)?;
     head.copy_from_slice(&[tag, n as u8]);
     Ok(2 + n)
 }

@@ -32,10 +32,11 @@ pub mod site;
 pub use board::{BoardId, BoardInfo, BoardKind, ClockSource, FirmwareVersion, PeerNote};
 pub use frame::{
     DecodeError, EncodeError, FrameDecoder, MAX_FRAME_LEN, MAX_MESSAGE_LEN, MAX_PAYLOAD_LEN, encode_batch,
-    encode_encoded, encode_frame, encode_message, encode_parts,
+    encode_encoded, encode_frame, encode_message, encode_outgoing_ray, encode_parts,
 };
 pub use health::{LinkHealth, PortHealth};
 pub use message::*;
+pub use ray_wire::OutgoingRay;
 pub use site::{Found, Site};
 
 /// Version of the wire protocol; nodes and host exchange it in [`Hello`].

@@ -265,6 +265,27 @@ proptest! {
         prop_assert_eq!(&out[..m], &encode(&frame)[..]);
     }
 
+    /// A ray packed from where a node keeps it, with a hop's changes beside
+    /// it, is postcard's serialization of the message it stands for, and
+    /// that message is the ray with those changes made.
+    #[test]
+    fn an_outgoing_ray_is_the_message_it_stands_for(
+        ray in arb_ray(),
+        class in any::<u16>(),
+        tag in any::<u16>(),
+        origin_at_eye in any::<bool>(),
+        granted in any::<bool>(),
+    ) {
+        let out = OutgoingRay { ray: &ray, class, tag, origin_at_eye, granted };
+        let mut bytes = [0u8; MAX_MESSAGE_LEN];
+        let n = encode_outgoing_ray(&out, &mut bytes).unwrap();
+        let msg = out.message();
+        prop_assert_eq!(&bytes[..n], &wire(&msg)[..]);
+        let origin = if origin_at_eye { ray_wire::ORIGIN_AT_EYE } else { ray.origin };
+        let sent = RayMsg { origin, class, tag, ..ray };
+        prop_assert_eq!(msg, if granted { Message::GrantedRay(sent) } else { Message::Ray(sent) });
+    }
+
     /// A channel decodes into one frame it keeps: a frame decoded replaces
     /// all of it (one without an acknowledgement clears the last one's), a
     /// damaged one leaves it as it was.

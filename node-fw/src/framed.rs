@@ -8,7 +8,7 @@
 //! what is due.
 
 use heapless::Deque;
-use link_proto::{MAX_FRAME_LEN, Message, PortHealth};
+use link_proto::{MAX_FRAME_LEN, Message, OutgoingRay, PortHealth};
 
 use crate::link::{Links, Port};
 use crate::reliable::{Channel, ChannelStats};
@@ -162,6 +162,10 @@ impl<const W: usize, const Q: usize> Links for FramedLinks<W, Q> {
             Some(channel) => channel.send(msg),
             None => Err(msg),
         }
+    }
+
+    fn try_send_ray(&mut self, port: Port, ray: &OutgoingRay<'_>) -> bool {
+        self.channels.get_mut(port.index()).is_some_and(|channel| channel.send_ray(ray))
     }
 
     fn session(&self) -> Option<u32> {

@@ -6,7 +6,7 @@
 //! UARTs on real boards. Receiving never blocks the node; sending hands the
 //! message back when the link is full (back-pressure, never a drop).
 
-use link_proto::{Message, PortHealth};
+use link_proto::{Message, OutgoingRay, PortHealth};
 
 /// One of a node's seven ports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -82,6 +82,13 @@ pub trait Links {
     // next poll); a message is a ray's size, 128 bytes, and stays on the stack.
     #[allow(clippy::result_large_err)]
     fn try_send(&mut self, port: Port, msg: Message) -> Result<(), Message>;
+    /// Queues the message `ray` stands for on `port`; whether the link took
+    /// it (the caller still holds the ray when not). Links that keep
+    /// messages whole build it; a framed link packs the ray from where it
+    /// lies, without the copy.
+    fn try_send_ray(&mut self, port: Port, ray: &OutgoingRay<'_>) -> bool {
+        self.try_send(port, ray.message()).is_ok()
+    }
     /// A port whose peer has restarted since the last call (a new incarnation
     /// on a framed link). Links that cannot tell, such as in-memory queues,
     /// never report one.

@@ -24,8 +24,8 @@
 //! version, so that a peer that predates `Sync` is still told apart.
 
 use link_proto::{
-    DecodeError, EncodeError, Frame, FrameDecoder, MAX_FRAME_LEN, Message, PROTOCOL_VERSION, Seq,
-    encode_batch, encode_encoded, encode_parts,
+    DecodeError, EncodeError, Frame, FrameDecoder, MAX_FRAME_LEN, Message, OutgoingRay, PROTOCOL_VERSION,
+    Seq, encode_batch, encode_encoded, encode_parts,
 };
 
 use crate::window::Window;
@@ -220,6 +220,16 @@ impl<const W: usize> Channel<W> {
             }
             Err(_) => Err(msg),
         }
+    }
+
+    /// Queues the message `ray` stands for, packed from where the ray lies;
+    /// whether it fitted (the caller still holds the ray when not).
+    pub fn send_ray(&mut self, ray: &OutgoingRay<'_>) -> bool {
+        let queued = self.unacked.push_ray(self.next_seq, ray).is_ok();
+        if queued {
+            self.next_seq = self.next_seq.wrapping_add(1);
+        }
+        queued
     }
 
     /// Feeds received bytes; hands in-order data messages to `deliver`, which

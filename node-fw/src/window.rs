@@ -7,7 +7,9 @@
 //! whole into the window (as large as a ray with its hit, 128 bytes) and
 //! encoded again on every write.
 
-use link_proto::{EncodeError, MAX_MESSAGE_LEN, Message, Seq, encode_message};
+use link_proto::{
+    EncodeError, MAX_MESSAGE_LEN, Message, OutgoingRay, Seq, encode_message, encode_outgoing_ray,
+};
 
 /// Up to `W` messages with their sequence numbers, in a ring of fixed slots.
 #[derive(Debug)]
@@ -65,12 +67,28 @@ impl<const W: usize> Window<W> {
     /// full (a message always fits its slot: [`MAX_MESSAGE_LEN`] is its
     /// encoding's bound).
     pub fn push(&mut self, seq: Seq, msg: &Message) -> Result<(), EncodeError> {
+        self.push_with(seq, |slot| encode_message(msg, slot))
+    }
+
+    /// Encodes the message `ray` stands for into the next slot as `seq`,
+    /// from where the ray lies; fails as [`Self::push`] does.
+    pub fn push_ray(&mut self, seq: Seq, ray: &OutgoingRay<'_>) -> Result<(), EncodeError> {
+        self.push_with(seq, |slot| encode_outgoing_ray(ray, slot))
+    }
+
+    /// Has `encode` write the next slot, numbered `seq`.
+    #[inline(always)]
+    fn push_with(
+        &mut self,
+        seq: Seq,
+        encode: impl FnOnce(&mut [u8]) -> Result<usize, EncodeError>,
+    ) -> Result<(), EncodeError> {
         if self.is_full() {
             return Err(EncodeError::BufferTooSmall);
         }
         let at = self.slot(self.len);
         let slot = self.slots.get_mut(at).ok_or(EncodeError::BufferTooSmall)?;
-        let len = encode_message(msg, slot)?;
+        let len = encode(slot)?;
         let entry = self.entries.get_mut(at).ok_or(EncodeError::BufferTooSmall)?;
         // `len` is at most the slot's length, under 256.
         *entry = Entry { seq, len: len as u8 };

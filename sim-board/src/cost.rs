@@ -52,16 +52,16 @@ impl Default for CostModel {
     /// cube) 2 784.6. Messages through a reliable channel, whose
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (eight frames on a board): one end of a hop (the ray in
-    /// its compact wire form, the reply carrying the ray's ack, the reply's
-    /// ack alone every eighth reply) 1 453.2, and of a ray reply with its ack
-    /// alone every eighth time 489.4, which stands for every short message; a
-    /// ray end is charged the difference, 964 (the UART's bytes are the link
+    /// its compact wire form, packed from where the node keeps it, the reply carrying the ray's ack, the reply's
+    /// ack alone every eighth reply) 1 414.2, and of a ray reply with its ack
+    /// alone every eighth time 490.4, which stands for every short message; a
+    /// ray end is charged the difference, 924 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every eighth ray) 1 013.0; of one in a batch of four in one frame
-    /// 874.5. The rays are half primaries from the eye,
+    /// every eighth ray) 967.8; of one in a batch of four in one frame
+    /// 829.8. The rays are half primaries from the eye,
     /// half reflections from inside the grid with half their pixel's credit
     /// (39.0 bytes a frame). A node's end of a retirement (the host's acks
-    /// taken) 1 074.6 with one record, 3 273.1 with six: 440 a further record.
+    /// taken) 1 077.6 with one record, 3 277.1 with six: 440 a further record.
     fn default() -> Self {
         Self {
             cube_step: 109,
@@ -69,11 +69,11 @@ impl Default for CostModel {
             trace: 278,
             shade: 6_941,
             create: 2_785,
-            ray_message: 964,
-            granted_ray: 1_013,
-            batched_ray: 875,
-            short_message: 489,
-            retire_message: 1_075,
+            ray_message: 924,
+            granted_ray: 968,
+            batched_ray: 830,
+            short_message: 490,
+            retire_message: 1_078,
             retire_record: 440,
             pass: 0,
         }

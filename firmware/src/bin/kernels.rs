@@ -14,8 +14,8 @@ use cortex_m_rt::entry;
 use embedded_io::Write;
 use link_proto::ray_wire::{ORIGIN_AT_EYE, PIXEL_CREDIT};
 use link_proto::{
-    CameraMsg, LightMsg, MAX_FRAME_LEN, MaterialMsg, Message, RayKind, RayMsg, RayReply, Retire, Retirements,
-    SceneHeader, SphereMsg,
+    CameraMsg, LightMsg, MAX_FRAME_LEN, MaterialMsg, Message, OutgoingRay, RayKind, RayMsg, RayReply, Retire,
+    Retirements, SceneHeader, SphereMsg,
 };
 use node_board::board::mps2_an385::{self as board, Timer, Uart};
 use node_board::capacity::WINDOW;
@@ -286,7 +286,7 @@ fn hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     let (mut passed, start) = (0u64, timer.ticks());
     for round in 0..40u64 {
         for ray in rays {
-            let _ = a.send(Message::Ray(*ray));
+            let _ = a.send_ray(&OutgoingRay::of(ray, false));
             let mut tag = None;
             pass(&mut a, &mut b, round, &mut wire, |m| {
                 if let Message::Ray(r) = m {
@@ -308,8 +308,8 @@ fn hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     (timer.ticks() - start, 2 * passed)
 }
 
-/// Passing each of `rays` over a hop on a grant: the ray through a reliable
-/// channel pair and the receiver's acks in frames of their own as the
+/// Passing each of `rays` over a hop on a grant: the ray, packed from where
+/// it lies as a node sends it, through a reliable channel pair and the receiver's acks in frames of their own as the
 /// channel sends them when nothing goes back to carry them, once per half
 /// window; no reply (per hop and end, bytes on the UART not included).
 /// Out of line, so that a trace can tell where it begins.
@@ -320,7 +320,7 @@ fn granted_hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     let (mut passed, start) = (0u64, timer.ticks());
     for round in 0..40u64 {
         for ray in rays {
-            let _ = a.send(Message::GrantedRay(*ray));
+            let _ = a.send_ray(&OutgoingRay::of(ray, true));
             pass(&mut a, &mut b, round, &mut wire, |m| core::hint::black_box(m.is_ray()));
             pass(&mut b, &mut a, round, &mut wire, |_| true);
             passed += 1;
@@ -340,7 +340,7 @@ fn batched_hops(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
     for round in 0..40u64 {
         for batch in rays.chunks(BATCH) {
             for ray in batch {
-                let _ = a.send(Message::GrantedRay(*ray));
+                let _ = a.send_ray(&OutgoingRay::of(ray, true));
             }
             pass(&mut a, &mut b, round, &mut wire, |m| core::hint::black_box(m.is_ray()));
             pass(&mut b, &mut a, round, &mut wire, |_| true);

@@ -2,7 +2,7 @@
 //! taking the replies to what was sent, and retrying refused rays when the
 //! neighbour has room again. Back-pressure, never a dropped ray.
 
-use link_proto::ray_wire::{self, ORIGIN_AT_EYE};
+use link_proto::ray_wire;
 use link_proto::{ErrorCode, RayKind, RayMsg, RayReply, Site};
 
 use crate::link::Port;
@@ -54,19 +54,15 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
     }
 
-    /// A ray as it leaves for a neighbour: a primary ray still on its way
-    /// from the eye sends [`ORIGIN_AT_EYE`] for its origin, which the wire
-    /// leaves out (every node knows the eye).
-    pub(super) fn for_the_wire(&self, mut ray: RayMsg) -> RayMsg {
-        if ray.kind == RayKind::Primary
+    /// Whether `ray` leaves for a neighbour with [`ray_wire::ORIGIN_AT_EYE`] for its
+    /// origin: a primary ray still on its way from the eye, whose origin the
+    /// wire leaves out (every node knows the eye).
+    pub(super) fn origin_at_eye(&self, ray: &RayMsg) -> bool {
+        ray.kind == RayKind::Primary
             && self.render.as_ref().is_some_and(|r| r.camera.eye.iter().zip(&ray.origin).all(|(a, b)| a == b))
-        {
-            ray.origin = ORIGIN_AT_EYE;
-        }
-        ray
     }
 
-    /// A ray as it arrives: the eye back in place of [`ORIGIN_AT_EYE`]. Before
+    /// A ray as it arrives: the eye back in place of [`ray_wire::ORIGIN_AT_EYE`]. Before
     /// a frame starts there is no eye, and the ray keeps an origin that its
     /// walk's set-up refuses.
     fn off_the_wire(&self, mut ray: RayMsg) -> RayMsg {

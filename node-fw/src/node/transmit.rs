@@ -1,8 +1,10 @@
 //! Sending: replies, notices, rays and retirements, control messages and
 //! slabs, as far as the links take them this poll.
 
+use core::cell::Cell;
+
 use link_proto::{
-    ErrorCode, Finish, LinkHealth, LoadReport, Message, PeerNote, PortHealth, Retirements, Site,
+    ErrorCode, Finish, LinkHealth, LoadReport, Message, OutgoingRay, PeerNote, PortHealth, Retirements, Site,
 };
 
 use crate::link::{Links, Port};
@@ -26,7 +28,13 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
 
     /// Sends what is due, in order of urgency, as far as the links take it.
     pub(super) fn transmit<L: Links>(&mut self, links: &mut L, work: &mut Work) {
-        let computed = work.computed();
+        let sends = Sends::default();
+        self.send_due(links, &sends, work.computed());
+        sends.add_to(work);
+    }
+
+    /// [`Self::transmit`], noting in `sends` what went.
+    fn send_due<L: Links>(&mut self, links: &mut L, sends: &Sends, computed: bool) {
         let mut send = |links: &mut L, port: Port, msg: Message| {
             let ray = msg.is_ray();
             let granted = matches!(msg, Message::GrantedRay(_));
@@ -35,22 +43,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 _ => None,
             };
             let ok = links.try_send(port, msg).is_ok();
-            // Not `work.sent += u32::from(ok)`: rustc 1.95 at opt-level >= 2
-            // drops the increment when the same bool is branched on after
-            // inlining (rust-lang/rust#158206, SimplifyComparisonIntegral), and
-            // release builds undercounted sends. The fuzz tests check the count.
             if ok {
-                work.sent += 1;
-                if ray {
-                    work.rays_sent += 1;
-                }
-                if granted {
-                    work.granted_rays += 1;
-                }
-                if let Some(records) = records {
-                    work.retire_messages += 1;
-                    work.extra_records += records.saturating_sub(1);
-                }
+                sends.note(ray, granted, records);
             }
             ok
         };
@@ -84,7 +78,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 n.end_due = !send(links, port, Message::Finish(Finish { frame: self.frames_ended }));
             }
         }
-        self.send_rays(links, &mut send, computed);
+        self.send_rays(links, &mut send, sends, computed);
         while let Some((port, msg)) = self.control.front().cloned() {
             if !send(links, port, msg) {
                 break;
@@ -169,6 +163,25 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
     }
 
+    /// Sends the ray in `slot` to `port`, packed from its slot: its class
+    /// one higher for the hop, tagged with its slot for the reply unless it
+    /// goes on a grant; whether the link took it.
+    fn send_ray<L: Links>(&self, links: &mut L, port: Port, slot: u16, granted: bool, sends: &Sends) -> bool {
+        let Some(ray) = self.pool.get(slot).map(|s| &s.ray) else { return false };
+        let out = OutgoingRay {
+            ray,
+            class: ray.class.saturating_add(1),
+            tag: if granted { 0 } else { slot },
+            origin_at_eye: self.origin_at_eye(ray),
+            granted,
+        };
+        let ok = links.try_send_ray(port, &out);
+        if ok {
+            sends.note(true, granted, None);
+        }
+        ok
+    }
+
     /// The ray in `slot` ended and its record joined the retirements on
     /// their way to the host, which hold all the host needs of it: the slot
     /// is free.
@@ -183,6 +196,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         &mut self,
         links: &mut L,
         send: &mut impl FnMut(&mut L, Port, Message) -> bool,
+        sends: &Sends,
         computed: bool,
     ) {
         if !self.pool.any_leaving() && self.retiring.is_none() {
@@ -252,10 +266,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                     n -= 1;
                 }
                 Stage::Outbound(port) if granted => {
-                    let Some(mut ray) = self.pool.get(i).map(|s| self.for_the_wire(s.ray)) else { continue };
-                    ray.class = ray.class.saturating_add(1);
-                    ray.tag = 0;
-                    if !send(links, port, Message::GrantedRay(ray)) {
+                    if !self.send_ray(links, port, i, true, sends) {
                         if close(port_full, &mut open) {
                             break;
                         }
@@ -271,10 +282,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                     n -= 1;
                 }
                 Stage::Outbound(port) => {
-                    let Some(mut ray) = self.pool.get(i).map(|s| self.for_the_wire(s.ray)) else { continue };
-                    ray.class = ray.class.saturating_add(1);
-                    ray.tag = i;
-                    if !send(links, port, Message::Ray(ray)) {
+                    if !self.send_ray(links, port, i, false, sends) {
                         if close(port_full, &mut open) {
                             break;
                         }
@@ -301,4 +309,50 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             }
         }
     }
+}
+
+/// What a poll sent, counted as it goes by every path that sends (a count
+/// each, shared, so that rays packed from their slots count as messages do).
+#[derive(Default)]
+pub(super) struct Sends {
+    sent: Cell<u32>,
+    rays: Cell<u32>,
+    granted: Cell<u32>,
+    retire_messages: Cell<u32>,
+    extra_records: Cell<u32>,
+}
+
+impl Sends {
+    /// One message went: a ray (on a grant or not), a retirement of
+    /// `records`, or anything else.
+    fn note(&self, ray: bool, granted: bool, records: Option<u32>) {
+        // Not `sent += u32::from(ok)` at the caller: rustc 1.95 at opt-level
+        // >= 2 drops the increment when the same bool is branched on after
+        // inlining (rust-lang/rust#158206, SimplifyComparisonIntegral), and
+        // release builds undercounted sends. The fuzz tests check the count.
+        bump(&self.sent, 1);
+        if ray {
+            bump(&self.rays, 1);
+        }
+        if granted {
+            bump(&self.granted, 1);
+        }
+        if let Some(records) = records {
+            bump(&self.retire_messages, 1);
+            bump(&self.extra_records, records.saturating_sub(1));
+        }
+    }
+
+    /// Adds the counts to the poll's work.
+    fn add_to(&self, work: &mut Work) {
+        work.sent += self.sent.get();
+        work.rays_sent += self.rays.get();
+        work.granted_rays += self.granted.get();
+        work.retire_messages += self.retire_messages.get();
+        work.extra_records += self.extra_records.get();
+    }
+}
+
+fn bump(count: &Cell<u32>, by: u32) {
+    count.set(count.get() + by);
 }
