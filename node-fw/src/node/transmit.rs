@@ -314,7 +314,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
 /// What a poll sent, counted as it goes by every path that sends (a count
 /// each, shared, so that rays packed from their slots count as messages do).
 #[derive(Default)]
-pub(super) struct Sends {
+struct Sends {
     sent: Cell<u32>,
     rays: Cell<u32>,
     granted: Cell<u32>,
