@@ -78,6 +78,12 @@ const SLIDING: Balance =
 
 /// Renders the test frame on an `array` of `board` with each of `balances`
 /// and compares each with the in-memory board.
+///
+/// Whether a boundary slides on emulated boards depends on wall-clock time
+/// (an idle node's virtual time follows the host's clock), and on a loaded
+/// machine a frame sometimes ends before any node is idle enough: a render
+/// with sliding is tried up to [`SLIDING_TRIES`] times until one slides,
+/// and every try must match the in-memory board.
 fn matches_the_in_memory_board(board: EmulatedBoard, array: [u16; 3], balances: &[Option<Balance>]) {
     let _one = one_array();
     let backend = Backend::Qemu { board, firmware: firmware(board) };
@@ -86,24 +92,36 @@ fn matches_the_in_memory_board(board: EmulatedBoard, array: [u16; 3], balances: 
         let mut opts = options(balance);
         opts.array = array;
         let memory = render_sim(&s, &opts).expect("in-memory render");
-        let started = std::time::Instant::now();
-        let qemu = render(&s, &opts, &backend, Duration::from_secs(30))
-            .unwrap_or_else(|e| panic!("{} render ({balance:?}): {e}", board.name()));
-        let [x, y, z] = array;
-        eprintln!("{} {x}x{y}x{z} ({balance:?}): {:.1} s", board.name(), started.elapsed().as_secs_f64());
-        assert_eq!(qemu.frame.rays_created, qemu.frame.rays_terminated, "every ray accounted for");
-        assert_eq!(qemu.frame.rays_created, memory.frame.rays_created);
-        assert!(
-            qemu.frame.sums == memory.frame.sums,
-            "pixel sums differ from the in-memory board ({balance:?})"
-        );
-        assert!(qemu.frame.loads.iter().all(Option::is_some), "every node reported its load");
+        let tries = if balance.is_some() { SLIDING_TRIES } else { 1 };
+        let mut slides = Vec::new();
+        for _ in 0..tries {
+            let started = std::time::Instant::now();
+            let qemu = render(&s, &opts, &backend, Duration::from_secs(30))
+                .unwrap_or_else(|e| panic!("{} render ({balance:?}): {e}", board.name()));
+            let [x, y, z] = array;
+            eprintln!("{} {x}x{y}x{z} ({balance:?}): {:.1} s", board.name(), started.elapsed().as_secs_f64());
+            assert_eq!(qemu.frame.rays_created, qemu.frame.rays_terminated, "every ray accounted for");
+            assert_eq!(qemu.frame.rays_created, memory.frame.rays_created);
+            assert!(
+                qemu.frame.sums == memory.frame.sums,
+                "pixel sums differ from the in-memory board ({balance:?})"
+            );
+            assert!(qemu.frame.loads.iter().all(Option::is_some), "every node reported its load");
+            slides.push(qemu.frame.slides.len());
+            if balance.is_none() || !qemu.frame.slides.is_empty() {
+                break;
+            }
+        }
         if balance.is_some() {
-            eprintln!("{} with sliding: {} slides committed", board.name(), qemu.frame.slides.len());
-            assert!(!qemu.frame.slides.is_empty(), "{}: no boundary slid", board.name());
+            eprintln!("{} with sliding: slides committed per try {slides:?}", board.name());
+            assert!(slides.iter().any(|&n| n > 0), "{}: no boundary slid in {tries} tries", board.name());
         }
     }
 }
+
+/// Renders with sliding tried before a test says the emulated boards never
+/// slide (see [`matches_the_in_memory_board`]).
+const SLIDING_TRIES: usize = 3;
 
 #[test]
 fn an_mps2_array_matches_the_in_memory_board() {
