@@ -173,7 +173,7 @@ impl LinkPreset {
     /// sixteen frames); the 24x24 frame of `tests/tests/emulated.rs` gives
     /// 7 837 (five runs). One figure fits both only so far: the preset takes
     /// 9 000, chosen so that the test frame's busiest node is charged about
-    /// a tenth too much (+10.8%) and the quick start's a fifth too little
+    /// a tenth too much (+10.6% to +11.7%) and the quick start's a fifth too little
     /// (-19.6%; docs/links.md). It is a mean over unlike passes: the
     /// emulated nodes poll with work 1.25-1.47 times as often as the
     /// in-memory ones (`busy_polls` in `loads.csv`: their messages complete
