@@ -93,6 +93,8 @@ check_cost() {
     fi
 }
 check_cost cube_walk "$(model cube_step)"
+check_cost clear_walk "$(model clear_step)"
+check_cost clear_look "$(model clear_look)"
 check_cost sphere_test "$(model sphere_test)"
 check_cost trace "$(model trace)"
 check_cost shade "$(model shade)"

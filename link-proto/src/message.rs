@@ -114,6 +114,9 @@ pub enum Message {
     /// Node to host: frames resent and damaged on each port since the last
     /// such report; sent before a frame's final load, and only after trouble.
     LinkHealth(LinkHealth),
+    /// Host to every node: which cubes of the grid some sphere's surface
+    /// touches, for [`CUBES_PER_OCCUPANCY`] cubes from `first`.
+    Occupancy(OccupancyMsg),
 }
 
 impl Message {
@@ -147,6 +150,7 @@ impl Message {
             Message::GrantedRay(_) => MessageKind::GrantedRay,
             Message::Peer(_) => MessageKind::Peer,
             Message::LinkHealth(_) => MessageKind::LinkHealth,
+            Message::Occupancy(_) => MessageKind::Occupancy,
         }
     }
 
@@ -214,11 +218,13 @@ pub enum MessageKind {
     Peer,
     /// [`Message::LinkHealth`].
     LinkHealth,
+    /// [`Message::Occupancy`].
+    Occupancy,
 }
 
 impl MessageKind {
     /// Every kind, in variant order.
-    pub const ALL: [MessageKind; 27] = [
+    pub const ALL: [MessageKind; 28] = [
         MessageKind::Hello,
         MessageKind::SceneBegin,
         MessageKind::Sphere,
@@ -246,6 +252,7 @@ impl MessageKind {
         MessageKind::GrantedRay,
         MessageKind::Peer,
         MessageKind::LinkHealth,
+        MessageKind::Occupancy,
     ];
 }
 
@@ -420,6 +427,24 @@ pub struct SceneEnd {
     pub spheres: u32,
     /// Number of lights broadcast.
     pub lights: u8,
+    /// Number of [`Message::Occupancy`] messages sent (none: the node
+    /// knows nothing of the cubes beyond its box).
+    pub occupancy: u16,
+}
+
+/// Cubes an [`OccupancyMsg`] covers.
+pub const CUBES_PER_OCCUPANCY: u32 = 256;
+
+/// Which of [`CUBES_PER_OCCUPANCY`] cubes some sphere's surface touches: the
+/// cubes a ray must be walked through by the node that holds them. The
+/// cubes are numbered `(z * grid_y + y) * grid_x + x`; bit `i % 8` of byte
+/// `i / 8` is cube `first + i`, set where a surface touches it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub struct OccupancyMsg {
+    /// The first cube, a multiple of [`CUBES_PER_OCCUPANCY`].
+    pub first: u32,
+    /// One bit a cube.
+    pub bits: [u8; 32],
 }
 
 /// A node's place in the array and its subregion.

@@ -62,11 +62,13 @@ pub enum Site {
     /// A hit on a ray whose credit is too small to split among its
     /// children (a ray that was not split as the node splits).
     CreditTooSmall,
+    /// A map of occupied cubes outside the scene's loading.
+    OccupancyOutOfPhase,
 }
 
 impl Site {
     /// Every site, in wire order.
-    pub const ALL: [Site; 26] = [
+    pub const ALL: [Site; 27] = [
         Site::ControlQueueFull,
         Site::SlideMessage,
         Site::OfferDuringSlide,
@@ -93,6 +95,7 @@ impl Site {
         Site::ShadeMissesSphere,
         Site::ShadeWithoutSurface,
         Site::CreditTooSmall,
+        Site::OccupancyOutOfPhase,
     ];
 
     /// The site a report's `b` names.

@@ -111,8 +111,11 @@ fn arb_message() -> impl Strategy<Value = Message> {
         ),
         (any::<u8>(), any::<[i32; 3]>(), any::<[u16; 3]>())
             .prop_map(|(id, position, color)| { Message::Light(LightMsg { id, position, color }) }),
-        (any::<u32>(), any::<u8>())
-            .prop_map(|(spheres, lights)| Message::SceneEnd(SceneEnd { spheres, lights })),
+        (any::<u32>(), any::<u8>(), any::<u16>()).prop_map(|(spheres, lights, occupancy)| Message::SceneEnd(
+            SceneEnd { spheres, lights, occupancy }
+        )),
+        (any::<u32>(), any::<[u8; 32]>())
+            .prop_map(|(first, bits)| Message::Occupancy(OccupancyMsg { first, bits })),
         (any::<[[u16; 3]; 4]>(), any::<u8>()).prop_map(|(a, driving_axis)| Message::Assign(Assign {
             array: a[0],
             coord: a[1],

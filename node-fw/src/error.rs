@@ -23,10 +23,12 @@ pub enum Field {
     Parameter,
     /// The reflection depth (at most [`link_proto::MAX_DEPTH`]).
     Depth,
+    /// An occupancy message: a cube outside the grid, or not as many as the scene's end counts.
+    Occupancy,
 }
 
 impl Field {
-    /// The field's number in an [`ErrorReport`] (`a`), 1 to 9 in the
+    /// The field's number in an [`ErrorReport`] (`a`), 1 to 10 in the
     /// order above. Not the enum's discriminant: a node's storage starts
     /// zero-filled ([`crate::node::Node::renew`]), so every enum it holds
     /// must have a variant at zero.
@@ -41,6 +43,7 @@ impl Field {
             Field::Subregion => 7,
             Field::Parameter => 8,
             Field::Depth => 9,
+            Field::Occupancy => 10,
         }
     }
 }

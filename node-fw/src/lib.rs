@@ -25,6 +25,7 @@ pub mod limits;
 pub mod link;
 pub mod load;
 pub mod node;
+pub mod occupancy;
 pub mod pool;
 pub mod reliable;
 pub mod route;

@@ -8,7 +8,7 @@ use link_proto::*;
 use node_fw::{Links, Node, Port};
 use proptest::prelude::*;
 
-type Fw = Node<64, 512, 512, 256>;
+type Fw = Node<64, 512, 512, 256, 128>;
 
 /// Links that deliver a scripted list of messages and record everything sent.
 #[derive(Default)]
@@ -137,7 +137,7 @@ fn arb_message() -> impl Strategy<Value = Message> {
         4 => arb_sphere().prop_map(Message::Sphere),
         1 => (proptest::array::uniform3(small_i32()), any::<u8>())
             .prop_map(|(position, id)| Message::Light(LightMsg { id, position, color: [20000; 3] })),
-        2 => (0u32..30, 0u8..3).prop_map(|(spheres, lights)| Message::SceneEnd(SceneEnd { spheres, lights })),
+        2 => (0u32..30, 0u8..3).prop_map(|(spheres, lights)| Message::SceneEnd(SceneEnd { spheres, lights, occupancy: 0 })),
         2 => (camera, any::<[u16; 2]>(), any::<[u16; 4]>(), (0u16..6, proptest::option::of(any::<u16>())), any::<bool>()).prop_map(
             |(camera, size, tile, (level_depth, shared_slots), balance)| Message::RenderStart(RenderStart {
                 frame: 0,
@@ -290,7 +290,7 @@ fn valid_setup(spheres: &[SphereMsg]) -> Vec<(Port, Message)> {
         Port::Host,
         Message::Light(LightMsg { id: 0, position: [4 << 16, 20 << 16, -(10 << 16)], color: [30000; 3] }),
     ));
-    v.push((Port::Host, Message::SceneEnd(SceneEnd { spheres: n, lights: 1 })));
+    v.push((Port::Host, Message::SceneEnd(SceneEnd { spheres: n, lights: 1, occupancy: 0 })));
     v.push((
         Port::Host,
         Message::RenderStart(common::render_start(Balance {

@@ -10,7 +10,7 @@ use node_fw::node::Node;
 use node_fw::reliable::Channel;
 use node_fw::{Links, Port};
 
-type TestNode = Node<8, 64, 64, 16>;
+type TestNode = Node<8, 64, 64, 16, 8>;
 type TestLinks = FramedLinks<4, 4>;
 
 /// The host's incarnation, which is the session its nodes are in.

@@ -11,7 +11,7 @@ use node_fw::framed::FramedLinks;
 use node_fw::node::Node;
 use node_fw::reliable::Channel;
 
-type TestNode = Node<8, 64, 64, 16>;
+type TestNode = Node<8, 64, 64, 16, 8>;
 
 /// The node as a board's static starts: all bytes zero. `mem::zeroed` in a
 /// constant is checked by the compiler, which refuses to build a type that
@@ -62,7 +62,7 @@ fn a_working_node_renewed_is_a_new_one() {
         Message::Assign(assign),
         Message::Sphere(sphere),
         Message::Light(light),
-        Message::SceneEnd(SceneEnd { spheres: 1, lights: 1 }),
+        Message::SceneEnd(SceneEnd { spheres: 1, lights: 1, occupancy: 0 }),
     ] {
         host.send(m).unwrap();
     }

@@ -14,7 +14,7 @@ use std::collections::VecDeque;
 use link_proto::*;
 use node_fw::{Links, Node, Port};
 
-type Fw = Node<64, 512, 512, 256>;
+type Fw = Node<64, 512, 512, 256, 128>;
 
 /// Per-port inboxes, ports that refuse sends, and what went out on each port.
 #[derive(Default)]
@@ -55,7 +55,7 @@ fn setup() -> Vec<Message> {
             driving_axis: 0,
             boundaries: Boundaries::Whole,
         }),
-        Message::SceneEnd(SceneEnd { spheres: 0, lights: 0 }),
+        Message::SceneEnd(SceneEnd { spheres: 0, lights: 0, occupancy: 0 }),
         Message::RenderStart(common::render_start(balance)),
     ]
 }

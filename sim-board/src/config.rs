@@ -18,7 +18,7 @@ pub type SimFramed = FramedLinks<WINDOW, SIM_INBOX>;
 /// The node firmware as the board runs it: 2048 spheres, 32768 sphere
 /// references, 32768 cubes (a 32^3 grid on one node) and 4096 ray slots
 /// (an 8x8x8 array with sliding needs 661 class levels at depth 3 and more).
-pub type SimNode = Node<2048, 32768, 32768, 4096>;
+pub type SimNode = Node<2048, 32768, 32768, 4096, 2048>;
 
 /// Board settings.
 #[derive(Debug, Clone, Copy, PartialEq)]

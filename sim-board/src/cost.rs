@@ -7,6 +7,11 @@ use node_fw::Work;
 pub struct CostModel {
     /// One unit-cube step of the digital line.
     pub cube_step: u64,
+    /// One cube walked beyond the box through the occupancy map's clear
+    /// cubes ([`node_fw::occupancy::Occupancy::walk_clear`]).
+    pub clear_step: u64,
+    /// Looking whether a leaving ray is near enough the grid's end to walk it on.
+    pub clear_look: u64,
     /// One ray/sphere test.
     pub sphere_test: u64,
     /// Setting up one walk (validating and resuming a ray).
@@ -44,7 +49,9 @@ impl Default for CostModel {
     /// Cortex-M3 instructions of the node firmware, measured on the emulated
     /// mps2-an385 (`scripts/firmware.sh` runs the `kernels` binary under
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
-    /// test) 109.1; a sphere test over a mostly-missing list 213.0; a walk's
+    /// test) 109.1; a cube walked on through the occupancy map (from ten cubes
+    /// before the grid's end, the call and its look included) 174.1, and a
+    /// look that finds the end too far 101.0; a sphere test over a mostly-missing list 213.0; a walk's
     /// set-up (the received ray's line checked, the walk resumed) 277.7; a
     /// shaded hit with one light and a mirror 6 941.3 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for
@@ -65,6 +72,8 @@ impl Default for CostModel {
     fn default() -> Self {
         Self {
             cube_step: 109,
+            clear_step: 174,
+            clear_look: 101,
             sphere_test: 213,
             trace: 278,
             shade: 6_941,
@@ -100,6 +109,8 @@ impl CostModel {
         let answered = w.rays_received + w.rays_sent - w.granted_rays;
         Busy {
             compute: u64::from(w.cube_steps) * self.cube_step
+                + u64::from(w.clear_steps) * self.clear_step
+                + u64::from(w.clear_looks) * self.clear_look
                 + u64::from(w.sphere_tests) * self.sphere_test
                 + u64::from(w.shades) * self.shade
                 + u64::from(w.created) * self.create,
@@ -233,6 +244,8 @@ mod tests {
         // measured defaults.
         let c = CostModel {
             cube_step: 114,
+            clear_step: 170,
+            clear_look: 95,
             sphere_test: 224,
             trace: 440,
             shade: 7_186,
@@ -247,6 +260,8 @@ mod tests {
         };
         let w = Work {
             cube_steps: 7,
+            clear_steps: 4,
+            clear_looks: 2,
             sphere_tests: 3,
             traces: 2,
             shades: 1,
@@ -260,7 +275,7 @@ mod tests {
             extra_records: 3,
         };
         let split = c.split(&w);
-        assert_eq!(split.compute, 7 * 114 + 3 * 224 + 7_186 + 2_924);
+        assert_eq!(split.compute, 7 * 114 + 4 * 170 + 2 * 95 + 3 * 224 + 7_186 + 2_924);
         assert_eq!(split.setup, 2 * 440);
         assert_eq!(split.messaging, 2 * 1_545 + 1_872 + 4 * 984 + 2 * 1_603 + 3 * 462);
         assert_eq!(split.total(), c.charge(&w));

@@ -24,11 +24,11 @@ fn the_cost_map_accounts_for_each_nodes_busy_time() {
     let (s, opts) = options();
     let map = direct::cost_map(
         &s,
-        opts.size[0],
-        opts.size[1],
+        opts.size,
         &opts.sim.cost,
         direct::ByteCpu::of(&opts.sim.link, &opts.sim.host_link),
         true,
+        opts.clear_walks,
     )
     .unwrap();
     let want = direct::render(&s, opts.size[0], opts.size[1]).unwrap();

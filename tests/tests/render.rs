@@ -325,7 +325,7 @@ fn a_node_reports_bad_input_the_host_did_not_catch() {
         material: (&node_fw::Material::default()).into(),
     };
     board.send(0, Message::Sphere(sphere));
-    board.send(0, Message::SceneEnd(SceneEnd { spheres: 1, lights: 0 }));
+    board.send(0, Message::SceneEnd(SceneEnd { spheres: 1, lights: 0, occupancy: 0 }));
     let mut frame = host_tool::session::frame::FrameBuffer::new(1, 1, 1, 1, [0; 3]);
     Transport::run(&mut board, &mut frame).expect("the node answers");
     let e = frame.errors.first().expect("the node reported an error");

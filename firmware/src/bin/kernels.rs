@@ -14,13 +14,14 @@ use cortex_m_rt::entry;
 use embedded_io::Write;
 use link_proto::ray_wire::{ORIGIN_AT_EYE, PIXEL_CREDIT};
 use link_proto::{
-    CameraMsg, LightMsg, MAX_FRAME_LEN, MaterialMsg, Message, OutgoingRay, RayKind, RayMsg, RayReply, Retire,
-    Retirements, SceneHeader, SphereMsg,
+    CameraMsg, LightMsg, MAX_FRAME_LEN, MaterialMsg, Message, OccupancyMsg, OutgoingRay, RayKind, RayMsg,
+    RayReply, Retire, Retirements, SceneHeader, SphereMsg,
 };
 use node_board::board::mps2_an385::{self as board, Timer, Uart};
 use node_board::capacity::WINDOW;
 use node_fw::camera::{primary_line, primary_ray};
 use node_fw::digital_line::wire_cell;
+use node_fw::occupancy::Occupancy;
 use node_fw::reliable::Channel;
 use node_fw::shading::{Scene, Surface};
 use node_fw::{DigitalLine, Direction, Grid, Line, Point, Sphere};
@@ -108,6 +109,71 @@ fn cube_walks(timer: &mut Timer, grid: &Grid) -> (u64, u64) {
         }
     }
     (timer.ticks() - start, steps)
+}
+
+/// A map of a 32^3 grid with every cube clear, in use.
+fn clear_map(grid: &Grid) -> Occupancy<1024> {
+    let mut map = Occupancy::new();
+    map.begin(grid);
+    let _ = map.take(&OccupancyMsg { first: 0, bits: [0; 32] }, grid);
+    let _ = map.finish(1);
+    map
+}
+
+/// Walks past a node's box through clear cubes to the grid's end
+/// (`Occupancy::walk_clear`), from ten cubes before each line's exit: per
+/// cube walked, the call and its look at how far the end is included.
+#[inline(never)]
+fn clear_walks(timer: &mut Timer) -> (u64, u64) {
+    let Ok(grid) = Grid::new([32; 3]) else { return (0, 0) };
+    let map = clear_map(&grid);
+    let lines = [
+        line([32768, 45875, 19661], [1_000_000, 618_034, 381_966]),
+        line([-(40 << 16), -(10 << 16), -(30 << 16)], [1_000_000, 470_000, 340_000]),
+        line([(16 << 16) + 4321, (20 << 16) + 999, -(8 << 16)], [-120_000, 310_000, 1_000_000]),
+        line([32768, 32768, 32768], [1, 0, 0]),
+    ];
+    let (mut steps, mut ticks) = (0u64, 0u64);
+    for l in lines.iter().flatten() {
+        let Some(mut walk) = DigitalLine::enter(l, &grid) else { continue };
+        let mut n = 0u32;
+        while grid.contains(walk.cell()) {
+            walk.step();
+            n += 1;
+        }
+        let Some(mut start) = DigitalLine::enter(l, &grid) else { continue };
+        for _ in 0..n.saturating_sub(10) {
+            start.step();
+        }
+        let t0 = timer.ticks();
+        for _ in 0..50 {
+            let mut walk = start.clone();
+            let mut taken = 0;
+            core::hint::black_box(map.walk_clear(l, &mut walk, &grid, None, &mut taken));
+            steps += u64::from(taken);
+        }
+        ticks += timer.ticks() - t0;
+    }
+    (ticks, steps)
+}
+
+/// A ray far from the grid's end: the map is not walked, only the end's
+/// distance looked at (`Occupancy::walk_clear` returns at once).
+#[inline(never)]
+fn clear_looks(timer: &mut Timer) -> (u64, u64) {
+    let Ok(grid) = Grid::new([32; 3]) else { return (0, 0) };
+    let map = clear_map(&grid);
+    // Turned away, the walk is left as it was: no copy needed.
+    let mut walks = walk_lines().map(|l| l.and_then(|l| Some((l, DigitalLine::enter(&l, &grid)?))));
+    let (mut looks, start) = (0u64, timer.ticks());
+    for _ in 0..100 {
+        for (l, walk) in walks.iter_mut().flatten() {
+            let mut taken = 0;
+            core::hint::black_box(map.walk_clear(l, walk, &grid, None, &mut taken));
+            looks += 1;
+        }
+    }
+    (timer.ticks() - start, looks)
 }
 
 fn sphere_list(grid: &Grid, rng: &mut Lcg) -> heapless::Vec<Sphere, SPHERES> {
@@ -548,6 +614,10 @@ fn main() -> ! {
     let _ = writeln!(out, "kernel cube_step {} {steps}", per_unit_x100(ticks, steps));
     let (ticks, steps) = cube_walks(&mut timer, &grid);
     let _ = writeln!(out, "kernel cube_walk {} {steps}", per_unit_x100(ticks, steps));
+    let (ticks, steps) = clear_walks(&mut timer);
+    let _ = writeln!(out, "kernel clear_walk {} {steps}", per_unit_x100(ticks, steps));
+    let (ticks, looks) = clear_looks(&mut timer);
+    let _ = writeln!(out, "kernel clear_look {} {looks}", per_unit_x100(ticks, looks));
 
     let spheres = sphere_list(&grid, &mut rng);
     if let Some(miss) = line([-100 << 16, 128 << 16, 128 << 16], [1_000_000, 1_234, -987]) {

@@ -15,6 +15,8 @@ use crate::error::{HostError, input};
 use crate::plan::camera::PixelBasis;
 use crate::plan::cost_map::CostMap;
 use crate::scene::Scene;
+use crate::scene::occupancy::occupancy_msgs;
+use node_fw::occupancy::{Occupancy, near_the_end};
 
 /// The whole grid in one subregion: up to 64^3 cubes and 65535 references.
 type Whole = Subregion<8192, 65535, 262_144>;
@@ -68,7 +70,19 @@ pub fn measure_costs(
     cost: &sim_board::CostModel,
     bytes: ByteCpu,
 ) -> Result<CostMap, HostError> {
-    let mut costs = Costs::new(cost, bytes, scene.grid);
+    measure(scene, [width, height], cost, bytes, false)
+}
+
+/// [`measure_costs`], the nodes walking rays on through clear cubes
+/// (`clear_walks`, [`RenderOptions::clear_walks`](crate::plan::options::RenderOptions::clear_walks)) or not.
+fn measure(
+    scene: &Scene,
+    [width, height]: [u16; 2],
+    cost: &sim_board::CostModel,
+    bytes: ByteCpu,
+    clear_walks: bool,
+) -> Result<CostMap, HostError> {
+    let mut costs = Costs::new(cost, bytes, scene, clear_walks);
     render_impl(scene, width, height, Some(&mut costs), 30)?;
     Ok(costs.map)
 }
@@ -76,16 +90,17 @@ pub fn measure_costs(
 /// The cost map of a `width` x `height` render of `scene`, with each initial
 /// ray charged to the cube where it enters the grid: its creation with
 /// `creation` (the node holding that cube creates it), else its receipt from
-/// the node that created it.
+/// the node that created it; the nodes walk rays on through clear cubes
+/// with `clear_walks`.
 pub fn cost_map(
     scene: &Scene,
-    width: u16,
-    height: u16,
+    [width, height]: [u16; 2],
     cost: &sim_board::CostModel,
     bytes: ByteCpu,
     creation: bool,
+    clear_walks: bool,
 ) -> Result<CostMap, HostError> {
-    let mut map = measure_costs(scene, width, height, cost, bytes)?;
+    let mut map = measure(scene, [width, height], cost, bytes, clear_walks)?;
     add_initial_rays(&mut map, scene, [width, height], cost, bytes, creation)?;
     Ok(map)
 }
@@ -206,7 +221,7 @@ pub fn render_costed(
     cost: &sim_board::CostModel,
     bytes: ByteCpu,
 ) -> Result<(DirectImage, CostMap), HostError> {
-    let mut costs = Costs::new(cost, bytes, scene.grid);
+    let mut costs = Costs::new(cost, bytes, scene, false);
     let img = render_impl(scene, width, height, Some(&mut costs), camera_bits)?;
     Ok((img, costs.map))
 }
@@ -275,11 +290,51 @@ struct Costs {
     bytes: ByteCpu,
     hop: HopPrice,
     map: CostMap,
+    /// The map of occupied cubes the nodes are sent, if any: a ray's faces
+    /// in its clear tail near the grid's end are never crossed, since the
+    /// node it would leave walks it on and retires it.
+    occupancy: Box<Occupancy<2048>>,
+    /// The cubes of the ray being walked.
+    path: Vec<[i32; 3]>,
 }
 
 impl Costs {
-    fn new(model: &sim_board::CostModel, bytes: ByteCpu, grid: [u16; 3]) -> Self {
-        Self { model: *model, bytes, hop: HopPrice::new(model, bytes), map: CostMap::new(grid) }
+    fn new(model: &sim_board::CostModel, bytes: ByteCpu, scene: &Scene, clear_walks: bool) -> Self {
+        let mut occupancy = Box::new(Occupancy::new());
+        if let Some(grid) = Grid::new(scene.grid).ok().filter(|_| clear_walks) {
+            let msgs = occupancy_msgs(&scene.sphere_msgs(), &grid);
+            occupancy.begin(&grid);
+            let taken = msgs.iter().all(|m| occupancy.take(m, &grid).is_ok());
+            if !taken || occupancy.finish(msgs.len() as u16).is_err() {
+                occupancy.clear();
+            }
+        }
+        Self {
+            model: *model,
+            bytes,
+            hop: HopPrice::new(model, bytes),
+            map: CostMap::new(scene.grid),
+            occupancy,
+            path: Vec::new(),
+        }
+    }
+
+    /// Charges the faces the walk in `path` crossed: all but those of a
+    /// ray that ended unhit (`clear_end`) from where its clear tail near the
+    /// grid's end begins.
+    fn add_crossings(&mut self, dir: [i32; 3], clear_end: bool, grid: &Grid, hop: u64) {
+        let mut tail = self.path.len();
+        if clear_end {
+            while tail > 0 && self.path.get(tail - 1).is_some_and(|&c| self.occupancy.is_clear(c)) {
+                tail -= 1;
+            }
+        }
+        for (k, pair) in self.path.windows(2).enumerate() {
+            let skipped = k + 1 >= tail && near_the_end(dir, pair[1], grid);
+            if !skipped {
+                self.map.add_crossing(pair[0], pair[1], hop);
+            }
+        }
     }
 }
 
@@ -313,15 +368,20 @@ fn trace(
         hop = c.hop.of(ray);
     }
     let mut last = walk.cell();
+    if let Some(c) = costs.as_deref_mut() {
+        c.path.clear();
+    }
     let outcome = region.trace_observed(&line, &mut walk, &mut best, &query, &mut stats, |cell, tests| {
         if let Some(c) = costs.as_deref_mut() {
             let cycles = c.model.cube_step + u64::from(tests) * c.model.sphere_test;
             c.map.add_compute(cell, cycles);
-            c.map.add_crossing(last, cell, hop);
+            c.path.push(cell);
         }
         last = cell;
     });
     if let Some(c) = costs {
+        let clear_end = matches!(outcome, Outcome::LeftGrid | Outcome::Clear);
+        c.add_crossings(ray.dir, clear_end, grid, hop);
         // The node where the ray ends retires it to the host.
         c.map.add_message(last, retire_cost(&c.model, c.bytes, ray));
         if let Outcome::Hit(_) = outcome {

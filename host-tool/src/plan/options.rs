@@ -112,6 +112,10 @@ pub struct RenderOptions {
     pub driving_axis: Option<u8>,
     /// How the grid is first cut.
     pub layout: Layout,
+    /// Send every node the map of occupied cubes, so that a node walks a
+    /// leaving ray on through clear cubes near the grid's end and retires
+    /// it instead of passing it ([`node_fw::occupancy`]).
+    pub clear_walks: bool,
 }
 
 impl RenderOptions {
@@ -130,6 +134,7 @@ impl RenderOptions {
             balance: None,
             driving_axis: None,
             layout: Layout::Even,
+            clear_walks: false,
         }
     }
 

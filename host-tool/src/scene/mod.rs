@@ -27,6 +27,7 @@ use crate::error::{HostError, input};
 
 pub mod fit;
 pub mod nff;
+pub mod occupancy;
 pub mod path;
 
 pub use fit::fit;

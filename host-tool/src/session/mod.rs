@@ -29,6 +29,7 @@ use crate::error::HostError;
 use crate::plan::Plan;
 use crate::results::RenderResult;
 use crate::scene::Scene;
+use crate::scene::occupancy::occupancy_msgs;
 use frame::FrameBuffer;
 use progress::Tracked;
 use transport::Transport;
@@ -106,6 +107,10 @@ pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan) {
     let lights = scene.light_msgs();
     // A grid the nodes refuse gets the whole scene: they report the error.
     let grid = node_fw::Grid::new(scene.grid).ok();
+    let occupancy = match grid.as_ref().filter(|_| plan.options.clear_walks) {
+        Some(g) => occupancy_msgs(&spheres, g),
+        None => Vec::new(),
+    };
     for id in 0..plan.tiles.len() {
         transport.send(id, Message::SceneBegin(scene.header()));
         transport.send(id, Message::Assign(plan.assign(id)));
@@ -117,7 +122,10 @@ pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan) {
         for l in &lights {
             transport.send(id, Message::Light(*l));
         }
-        let end = SceneEnd { spheres: sent, lights: lights.len() as u8 };
+        for m in &occupancy {
+            transport.send(id, Message::Occupancy(*m));
+        }
+        let end = SceneEnd { spheres: sent, lights: lights.len() as u8, occupancy: occupancy.len() as u16 };
         transport.send(id, Message::SceneEnd(end));
     }
 }

@@ -9,7 +9,7 @@ use crate::slide::{self, Side};
 
 use super::Node;
 
-impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: usize> Node<S, R, C, P, O> {
     /// The axis whose boundaries slide (0 before an assignment).
     pub(super) fn driving_axis(&self) -> usize {
         self.assign.map_or(0, |a| usize::from(a.driving_axis))

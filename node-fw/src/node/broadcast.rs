@@ -2,7 +2,9 @@
 //! the spheres that touch its box, the lights), the start of a frame, and a
 //! new session's reset.
 
-use link_proto::{Assign, ErrorCode, LightMsg, MAX_DEPTH, RenderStart, SceneHeader, Site, SphereMsg};
+use link_proto::{
+    Assign, ErrorCode, LightMsg, MAX_DEPTH, OccupancyMsg, RenderStart, SceneEnd, SceneHeader, Site, SphereMsg,
+};
 
 use crate::cube_box::CubeBox;
 use crate::error::{Error, Field};
@@ -17,7 +19,7 @@ use super::initial_rays::scatter_stride;
 use super::initial_rays::tile_pixels;
 use super::{MAX_LIGHTS, NO_HEADER, Node, Phase, Totals};
 
-impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: usize> Node<S, R, C, P, O> {
     /// Back to the state of a fresh start, in place (a node is too large to
     /// build anew on a board's stack), saying hello again.
     pub(super) fn start_over(&mut self) {
@@ -26,6 +28,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         self.grid = Grid::UNIT;
         self.assign = None;
         self.region.clear();
+        self.occupancy.clear();
         self.lights.clear();
         self.spheres_seen = 0;
         self.render = None;
@@ -65,6 +68,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
                 self.grid = grid;
                 self.assign = None;
                 self.region.clear();
+                self.occupancy.begin(&grid);
                 self.lights.clear();
                 self.spheres_seen = 0;
                 self.render = None;
@@ -137,10 +141,24 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
         }
     }
 
+    /// Part of the map of the grid's occupied cubes; every node gets all of it.
+    pub(super) fn take_occupancy(&mut self, m: &OccupancyMsg) {
+        if self.phase != Phase::Loading {
+            return self.fail_at(ErrorCode::Unexpected, 0, Site::OccupancyOutOfPhase);
+        }
+        if let Err(e) = self.occupancy.take(m, &self.grid) {
+            self.fail_with(e);
+        }
+    }
+
     /// The scene is complete if the counts match what arrived.
-    pub(super) fn end_scene(&mut self, spheres: u32, lights: u8) {
+    pub(super) fn end_scene(&mut self, end: SceneEnd) {
+        let SceneEnd { spheres, lights, occupancy } = end;
         if self.phase != Phase::Loading || self.assign.is_none() {
             return self.fail_at(ErrorCode::Unexpected, 0, Site::SceneEndOutOfPhase);
+        }
+        if let Err(e) = self.occupancy.finish(occupancy) {
+            return self.fail_with(e);
         }
         if spheres != self.spheres_seen {
             return self.fail(ErrorCode::SceneCount, spheres, self.spheres_seen);

@@ -9,7 +9,7 @@ use crate::pool::Stage;
 
 use super::{Node, Phase, Work, retire_to_background};
 
-impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: usize> Node<S, R, C, P, O> {
     /// Whether initial rays of this node's tile remain to be created.
     pub(super) fn creation_left(&self) -> bool {
         self.phase == Phase::Rendering && self.render.is_some_and(|r| self.cursor < tile_pixels(&r.tile))

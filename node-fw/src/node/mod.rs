@@ -40,6 +40,7 @@ use crate::error::Error;
 use crate::geometry::Grid;
 use crate::link::{Links, Port};
 use crate::load::{IntervalClock, LoadMeter};
+use crate::occupancy::Occupancy;
 use crate::pool::RayPool;
 use crate::slide::SlideState;
 use crate::subregion::Subregion;
@@ -76,6 +77,11 @@ pub const GRANT_TARGET: u16 = 16;
 pub struct Work {
     /// Unit-cube steps.
     pub cube_steps: u32,
+    /// Steps beyond the node's box through cubes the occupancy map shows
+    /// clear ([`crate::occupancy::Occupancy::walk_clear`]).
+    pub clear_steps: u32,
+    /// Leaving rays looked at to see whether to walk them on ([`Work::clear_steps`]).
+    pub clear_looks: u32,
     /// Ray/sphere tests.
     pub sphere_tests: u32,
     /// Ray walks through the subregion.
@@ -143,15 +149,18 @@ enum Phase {
     Failed,
 }
 
-/// A node with `S` spheres, `R` sphere references, `C` cubes and `P` ray slots.
+/// A node with `S` spheres, `R` sphere references, `C` cubes, `P` ray slots
+/// and `O` words of the grid's occupancy ([`crate::occupancy`]).
 #[derive(Debug)]
-pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize> {
+pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize, const O: usize> {
     id: u16,
     phase: Phase,
     header: SceneHeader,
     grid: Grid,
     assign: Option<Assign>,
     region: Subregion<S, R, C>,
+    /// Which cubes of the whole grid hold a surface.
+    occupancy: Occupancy<O>,
     lights: Vec<LightMsg, MAX_LIGHTS>,
     spheres_seen: u32,
     render: Option<RenderStart>,
@@ -211,7 +220,7 @@ pub const UNNAMED_BOARD: BoardInfo = BoardInfo {
 const NO_HEADER: SceneHeader =
     SceneHeader { grid: [1; 3], ambient: [0; 3], background: [0; 3], max_depth: 0 };
 
-impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: usize> Node<S, R, C, P, O> {
     /// A node with index `id` (row-major over the array), waiting for a scene.
     pub const fn new(id: u16) -> Self {
         Self {
@@ -221,6 +230,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             grid: Grid::UNIT,
             assign: None,
             region: Subregion::new(),
+            occupancy: Occupancy::new(),
             lights: Vec::new(),
             spheres_seen: 0,
             render: None,
@@ -489,7 +499,8 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             (Port::Host, Message::Assign(a)) => self.take_assignment(a),
             (Port::Host, Message::Sphere(s)) => self.take_sphere(s),
             (Port::Host, Message::Light(l)) => self.take_light(l),
-            (Port::Host, Message::SceneEnd(end)) => self.end_scene(end.spheres, end.lights),
+            (Port::Host, Message::Occupancy(m)) => self.take_occupancy(&m),
+            (Port::Host, Message::SceneEnd(end)) => self.end_scene(end),
             (Port::Host, Message::RenderStart(r)) => self.start_render(r),
             (Port::Host, Message::Finish(_)) => self.finish_frame(),
             (p, Message::Finish(_)) => self.neighbour_ended(p),

@@ -10,7 +10,7 @@ use crate::pool::Stage;
 
 use super::{GRANT_TARGET, Node, Phase};
 
-impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: usize> Node<S, R, C, P, O> {
     /// A neighbour passes a ray on: admitted to the pool or refused, and
     /// answered either way.
     pub(super) fn admit_ray(&mut self, port: Port, ray: RayMsg) {

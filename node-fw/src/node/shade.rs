@@ -13,7 +13,7 @@ use crate::sphere::Sphere;
 
 use super::{Children, Node, Work, retire};
 
-impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: usize> Node<S, R, C, P, O> {
     /// The sphere of a ray's best hit, from the ray itself.
     fn hit_sphere(&self, ray: &RayMsg) -> Option<(Scalar, Sphere)> {
         let hit = ray.best?;

@@ -13,7 +13,7 @@ use crate::sphere::Sphere;
 
 use super::{Node, Phase};
 
-impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: usize> Node<S, R, C, P, O> {
     /// Begins giving the slab up to `boundary` on `side` away.
     pub(super) fn start_giving(&mut self, side: Side, boundary: u16) {
         self.slide.outgoing[side] =

@@ -15,7 +15,7 @@ use crate::subregion::{Outcome, Query, TraceStats};
 
 use super::{Children, Node, Work, retire, retire_to_background};
 
-impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: usize> Node<S, R, C, P, O> {
     /// One piece of work: the ready ray of the lowest class, else a new
     /// initial ray. Low classes are early in their lives, so serving them
     /// first hands the nodes further on their work soonest: on 8x8x8 with
@@ -84,10 +84,24 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, 
             }
             _ => carried,
         };
+        let leaves_at = walk.cell();
+        let outcome = match outcome {
+            // A ray with no hit pending may meet nothing more: then it ends
+            // here, as the nodes it would cross would end it.
+            Outcome::Leave if ray.best.is_none() => {
+                let mut steps = 0;
+                work.clear_looks += u32::from(self.occupancy.is_ready());
+                let end = self.occupancy.walk_clear(&line, &mut walk, &self.grid, query.t_max, &mut steps);
+                work.clear_steps += steps;
+                self.totals.cube_steps += steps;
+                end.unwrap_or(Outcome::Leave)
+            }
+            other => other,
+        };
         let stage = match outcome {
             Outcome::Leave => {
-                ray.cell = walk.cell().map(|c| c as u16);
-                match route::toward(&self.region.owned(), walk.cell(), self.driving_axis()) {
+                ray.cell = leaves_at.map(|c| c as u16);
+                match route::toward(&self.region.owned(), leaves_at, self.driving_axis()) {
                     Some(port) => self.leave_by(port, ray.class),
                     None => return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::LeavesTowardNoNeighbour),
                 }

@@ -13,7 +13,7 @@ use crate::slide::Side;
 
 use super::{FINAL_INTERVAL, MAX_OUTSTANDING, Node, Work};
 
-impl<const S: usize, const R: usize, const C: usize, const P: usize> Node<S, R, C, P> {
+impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: usize> Node<S, R, C, P, O> {
     /// Queues a control message; loads beyond half the queue are dropped (a
     /// newer one follows), everything else always fits (at most one per side).
     pub(super) fn queue_control(&mut self, port: Port, msg: Message) {
