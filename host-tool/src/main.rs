@@ -186,11 +186,12 @@ struct RenderArgs {
     /// How the grid is first cut into subregions.
     #[arg(long, value_enum, default_value = "even")]
     layout: LayoutMode,
-    /// Send every node a map of the cubes spheres touch (a bit a cube, grids
-    /// up to 65536 cubes), so that a ray leaving a node with nothing left to
-    /// meet near the grid's end is retired there instead of passed on.
+    /// Do not send the nodes the map of the cubes spheres touch (a bit a
+    /// cube, grids up to 65536 cubes; with it, a ray leaving a node with
+    /// nothing left to meet near the grid's end is retired there instead of
+    /// passed on).
     #[arg(long)]
-    clear_walks: bool,
+    no_clear_walks: bool,
     /// Load balancing.
     #[arg(long, value_enum, default_value = "slide")]
     balance: BalanceMode,
@@ -339,7 +340,7 @@ fn render(args: RenderArgs) -> Result<(), HostError> {
         InitialMode::Eye => Initial::EyeNode,
         InitialMode::Entry => Initial::Entry,
     };
-    opts.clear_walks = args.clear_walks;
+    opts.clear_walks = !args.no_clear_walks;
     opts.layout = match args.layout {
         LayoutMode::Even => Layout::Even,
         LayoutMode::Preview => Layout::Preview,

@@ -198,3 +198,91 @@ pub fn near_the_end(dir: [i32; 3], cell: [i32; 3], grid: &Grid) -> bool {
 fn blocks_of(size: [u32; 3], shift: u32) -> [u32; 3] {
     size.map(|s| s.div_ceil(1 << shift))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn msg(first: u32, cubes: &[u32]) -> OccupancyMsg {
+        let mut bits = [0u8; 32];
+        for &c in cubes {
+            bits[(c / 8) as usize] |= 1 << (c % 8);
+        }
+        OccupancyMsg { first, bits }
+    }
+
+    #[test]
+    fn a_map_is_used_only_once_complete() {
+        let grid = Grid::new([8, 8, 8]).unwrap();
+        let mut map = Occupancy::<16>::new();
+        map.begin(&grid);
+        assert!(!map.is_clear([0, 0, 0]), "nothing is clear before the map is complete");
+        map.take(&msg(0, &[1]), &grid).unwrap();
+        map.take(&msg(256, &[]), &grid).unwrap();
+        assert_eq!(map.finish(3), Err(Error::OutOfRange(Field::Occupancy)), "a message missing");
+        map.begin(&grid);
+        map.take(&msg(0, &[1]), &grid).unwrap();
+        map.take(&msg(256, &[]), &grid).unwrap();
+        map.finish(2).unwrap();
+        assert!(map.is_clear([0, 0, 0]) && !map.is_clear([1, 0, 0]));
+        assert!(!map.is_clear([-1, 0, 0]) && !map.is_clear([8, 0, 0]), "outside the grid is never clear");
+        map.clear();
+        assert!(!map.is_clear([0, 0, 0]));
+    }
+
+    #[test]
+    fn a_grid_larger_than_the_map_is_kept_in_blocks() {
+        // 8^3 = 512 cubes in 4 words = 128 bits: blocks of 2^3 cubes (64).
+        let grid = Grid::new([8, 8, 8]).unwrap();
+        let mut map = Occupancy::<4>::new();
+        map.begin(&grid);
+        // Cube (3, 2, 5): index (5 * 8 + 2) * 8 + 3 = 339, in the second message.
+        map.take(&msg(0, &[]), &grid).unwrap();
+        map.take(&msg(256, &[339 - 256]), &grid).unwrap();
+        map.finish(2).unwrap();
+        for x in 0..8 {
+            for y in 0..8 {
+                for z in 0..8 {
+                    let in_block = x / 2 == 1 && y / 2 == 1 && z / 2 == 2;
+                    assert_eq!(map.is_clear([x, y, z]), !in_block, "({x}, {y}, {z})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_message_outside_the_grid_is_refused() {
+        let grid = Grid::new([4, 4, 4]).unwrap();
+        let mut map = Occupancy::<2>::new();
+        map.begin(&grid);
+        assert!(map.take(&msg(256, &[]), &grid).is_err(), "starts past the grid");
+        assert!(map.take(&msg(3, &[]), &grid).is_err(), "not a multiple of 256");
+        assert!(map.take(&msg(0, &[64]), &grid).is_err(), "marks cube 64 of 64");
+        map.take(&msg(0, &[63]), &grid).unwrap();
+    }
+
+    #[test]
+    fn a_clear_walk_ends_where_the_grid_does_or_at_a_marked_cube() {
+        let grid = Grid::new([32, 4, 4]).unwrap();
+        let line = Line::new(
+            crate::geometry::Point::from_bits([20 << 16 | 0x8000, 0x18000, 0x18000]).unwrap(),
+            crate::geometry::Direction::from_bits([1 << 30, 0, 0]).unwrap(),
+        );
+        let walk_from = |map: &Occupancy<16>| {
+            let mut walk = DigitalLine::enter(&line, &grid).unwrap();
+            let mut steps = 0;
+            (map.walk_clear(&line, &mut walk, &grid, None, &mut steps), steps)
+        };
+        let mut map = Occupancy::<16>::new();
+        map.begin(&grid);
+        map.take(&msg(0, &[]), &grid).unwrap();
+        map.finish(1).unwrap();
+        // From cube 20 along +x: 11 steps to cube 31, the 12th leaves.
+        assert_eq!(walk_from(&map), (Some(Outcome::LeftGrid), 12));
+        // Cube (27, 1, 1) marked: index (1 * 4 + 1) * 32 + 27 = 187.
+        map.begin(&grid);
+        map.take(&msg(0, &[187]), &grid).unwrap();
+        map.finish(1).unwrap();
+        assert_eq!(walk_from(&map), (None, 7));
+    }
+}

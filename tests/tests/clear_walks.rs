@@ -1,4 +1,4 @@
-//! Clear walks (`--clear-walks`): nodes that hold the map of occupied cubes
+//! Clear walks (on unless `--no-clear-walks`): nodes that hold the map of occupied cubes
 //! retire a ray that has nothing left to meet near the grid's end instead of
 //! passing it on. The image must stay the single loop's, on every array,
 //! sliding or not, and the rays passed must be fewer.
@@ -30,9 +30,8 @@ fn clear_walks_keep_the_image_and_pass_fewer_rays() {
         if sliding {
             opts.balance = Some(host_tool::plan::options::DEFAULT_BALANCE);
         }
-        let plain = render_sim(&s, &opts).unwrap();
-        opts.clear_walks = true;
         let clear = render_sim(&s, &opts).unwrap();
+        let plain = render_sim(&s, &RenderOptions { clear_walks: false, ..opts }).unwrap();
         for r in [&plain, &clear] {
             assert!(r.frame.sums == want.sums, "{array:?}: image differs from the single loop");
             assert_eq!(r.frame.rays_created, r.frame.rays_terminated, "{array:?}: rays lost");

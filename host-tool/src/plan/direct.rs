@@ -295,7 +295,7 @@ struct Costs {
     /// node it would leave walks it on and retires it.
     occupancy: Box<Occupancy<2048>>,
     /// The cubes of the ray being walked.
-    path: Vec<[i32; 3]>,
+    path: Vec<([i32; 3], u64)>,
 }
 
 impl Costs {
@@ -319,21 +319,35 @@ impl Costs {
         }
     }
 
-    /// Charges the faces the walk in `path` crossed: all but those of a
-    /// ray that ended unhit (`clear_end`) from where its clear tail near the
-    /// grid's end begins.
-    fn add_crossings(&mut self, dir: [i32; 3], clear_end: bool, grid: &Grid, hop: u64) {
+    /// Charges the walk in `path`: each cube its cycles, and each face the
+    /// ray crossed the hop. A ray that ended unhit (`clear_end`) is retired
+    /// by the node it would leave where its clear tail comes within reach of
+    /// the grid's end: from there on no face is crossed, and the cubes
+    /// beyond and the retirement (`retire`) fall to the cube before, which
+    /// that node holds were a boundary there. Returns the cube that retires.
+    fn add_walk(&mut self, dir: [i32; 3], clear_end: bool, grid: &Grid, hop: u64, retire: u64) {
         let mut tail = self.path.len();
         if clear_end {
-            while tail > 0 && self.path.get(tail - 1).is_some_and(|&c| self.occupancy.is_clear(c)) {
+            while tail > 0 && self.path.get(tail - 1).is_some_and(|&(c, _)| self.occupancy.is_clear(c)) {
                 tail -= 1;
             }
         }
-        for (k, pair) in self.path.windows(2).enumerate() {
-            let skipped = k + 1 >= tail && near_the_end(dir, pair[1], grid);
-            if !skipped {
-                self.map.add_crossing(pair[0], pair[1], hop);
+        let within = |k: usize, cell: [i32; 3]| k >= tail && near_the_end(dir, cell, grid);
+        // The first cube past a face that is not crossed.
+        let cut = (tail.max(1)..self.path.len()).find(|&k| within(k, self.path[k].0));
+        let holder = |k: usize| match cut {
+            Some(j) if k >= j => j - 1,
+            _ => k,
+        };
+        for k in 0..self.path.len() {
+            let (cell, cycles) = self.path[k];
+            self.map.add_compute(self.path[holder(k)].0, cycles);
+            if k > 0 && !within(k, cell) {
+                self.map.add_crossing(self.path[k - 1].0, cell, hop);
             }
+        }
+        if let Some(&(cell, _)) = self.path.get(holder(self.path.len().saturating_sub(1))) {
+            self.map.add_message(cell, retire);
         }
     }
 }
@@ -374,16 +388,15 @@ fn trace(
     let outcome = region.trace_observed(&line, &mut walk, &mut best, &query, &mut stats, |cell, tests| {
         if let Some(c) = costs.as_deref_mut() {
             let cycles = c.model.cube_step + u64::from(tests) * c.model.sphere_test;
-            c.map.add_compute(cell, cycles);
-            c.path.push(cell);
+            c.path.push((cell, cycles));
         }
         last = cell;
     });
     if let Some(c) = costs {
         let clear_end = matches!(outcome, Outcome::LeftGrid | Outcome::Clear);
-        c.add_crossings(ray.dir, clear_end, grid, hop);
         // The node where the ray ends retires it to the host.
-        c.map.add_message(last, retire_cost(&c.model, c.bytes, ray));
+        let retire = retire_cost(&c.model, c.bytes, ray);
+        c.add_walk(ray.dir, clear_end, grid, hop, retire);
         if let Outcome::Hit(_) = outcome {
             c.map.add_compute(last, c.model.shade);
         }

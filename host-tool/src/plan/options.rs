@@ -120,7 +120,8 @@ pub struct RenderOptions {
 
 impl RenderOptions {
     /// Defaults for an array: 256 x 256 pixels, initial rays created where they
-    /// enter, one slot kept per class level and every slot left over shared.
+    /// enter, one slot kept per class level and every slot left over shared,
+    /// the map of occupied cubes sent.
     pub fn new(array: [u16; 3]) -> Self {
         Self {
             array,
@@ -134,7 +135,7 @@ impl RenderOptions {
             balance: None,
             driving_axis: None,
             layout: Layout::Even,
-            clear_walks: false,
+            clear_walks: true,
         }
     }
 
