@@ -169,24 +169,25 @@ impl LinkPreset {
     /// array rendering the quick start's frame (64x64, 60 spheres, seed 3,
     /// grid 16^3, static): the busiest node's emulated running time less
     /// what the in-memory board charges it, over its polls that did work,
-    /// gives 12 016 instructions (three QEMU runs, median, at windows of
-    /// sixteen frames); the 24x24 frame of `tests/tests/emulated.rs` gives
-    /// 7 837 (five runs). One figure fits both only so far: the preset takes
-    /// 9 000, chosen so that the test frame's busiest node is charged about
-    /// a tenth too much (+10.6% to +11.7%) and the quick start's a fifth too little
-    /// (-19.6%; docs/links.md). It is a mean over unlike passes: the
+    /// gives 9 390 instructions (three QEMU runs, median, with clear walks);
+    /// the 24x24 frame of `tests/tests/emulated.rs` gives 6 195 (five runs).
+    /// One figure fits both only so far: the preset takes 7 000, chosen so
+    /// that the test frame's busiest node is charged about a tenth too much
+    /// and the quick start's a fifth too little (-18.8%; docs/links.md).
+    /// Clear walks moved both fits down (from 12 016 and 7 837): the nodes
+    /// in front pass fewer rays and their passes shorten, more than the
+    /// kernels' figures for the messages saved. It is a mean over unlike passes: the
     /// emulated nodes poll with work 1.25-1.47 times as often as the
     /// in-memory ones (`busy_polls` in `loads.csv`: their messages complete
-    /// a few bytes at a time, so fewer arrive together), and per emulated
-    /// busy poll they spend 6 300-8 200 instructions beyond the kernels, the
-    /// busier frame more. Tracing node 0 (QEMU `-singlestep -d exec`) finds its passes
+    /// a few bytes at a time, so fewer arrive together), the busier frame
+    /// more. Tracing node 0 (QEMU `-singlestep -d exec`) finds its passes
     /// moving every byte through a UART register, and the frame decoder
     /// copying what arrived a few bytes at a time. The other
     /// presets stand for boards whose UARTs move bytes by interrupt or DMA,
     /// whose pass is not measured yet: none is charged.
     pub const fn loop_pass(self) -> u64 {
         match self {
-            LinkPreset::Emulated => 9_000,
+            LinkPreset::Emulated => 7_000,
             LinkPreset::F413 | LinkPreset::Ideal => 0,
         }
     }
