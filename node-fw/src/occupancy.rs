@@ -101,10 +101,11 @@ impl<const W: usize> Occupancy<W> {
         Ok(())
     }
 
-    /// Forgets the map: nothing is known beyond the node's box.
+    /// Forgets the map, in place: as [`Occupancy::new`] makes it, nothing
+    /// known beyond the node's box.
     pub fn clear(&mut self) {
-        self.ready = false;
-        self.taken = 0;
+        self.words.iter_mut().for_each(|w| *w = 0);
+        (self.shift, self.blocks, self.taken, self.ready) = (0, [0; 3], 0, false);
     }
 
     /// Whether the map is in use.

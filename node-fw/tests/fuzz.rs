@@ -137,7 +137,9 @@ fn arb_message() -> impl Strategy<Value = Message> {
         4 => arb_sphere().prop_map(Message::Sphere),
         1 => (proptest::array::uniform3(small_i32()), any::<u8>())
             .prop_map(|(position, id)| Message::Light(LightMsg { id, position, color: [20000; 3] })),
-        2 => (0u32..30, 0u8..3).prop_map(|(spheres, lights)| Message::SceneEnd(SceneEnd { spheres, lights, occupancy: 0 })),
+        2 => (0u32..30, 0u8..3, 0u16..3).prop_map(|(spheres, lights, occupancy)| Message::SceneEnd(SceneEnd { spheres, lights, occupancy })),
+        2 => (prop_oneof![Just(0u32), Just(256), Just(512), any::<u32>()], any::<[u8; 32]>())
+            .prop_map(|(first, bits)| Message::Occupancy(OccupancyMsg { first, bits })),
         2 => (camera, any::<[u16; 2]>(), any::<[u16; 4]>(), (0u16..6, proptest::option::of(any::<u16>())), any::<bool>()).prop_map(
             |(camera, size, tile, (level_depth, shared_slots), balance)| Message::RenderStart(RenderStart {
                 frame: 0,
