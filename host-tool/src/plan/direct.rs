@@ -323,10 +323,15 @@ impl Costs {
     /// ray crossed the hop. A ray that ended unhit (`clear_end`) is retired
     /// by the node it would leave where its clear tail comes within reach of
     /// the grid's end: from there on no face is crossed, and the cubes
-    /// beyond and the retirement (`retire`) fall to the cube before, which
-    /// that node holds were a boundary there. Returns the cube that retires.
+    /// beyond (walked at the clear walk's price) and the retirement
+    /// (`retire`) fall to the cube before, which that node holds were a
+    /// boundary there. A face crossed costs its sides, beside the hop, the
+    /// leaving node's look and, near the end, its walk on through the clear
+    /// cubes to the first marked one, half to each side.
     fn add_walk(&mut self, dir: [i32; 3], clear_end: bool, grid: &Grid, hop: u64, retire: u64) {
-        let mut tail = self.path.len();
+        let n = self.path.len();
+        let walking = self.occupancy.is_ready();
+        let mut tail = n;
         if clear_end {
             while tail > 0 && self.path.get(tail - 1).is_some_and(|&(c, _)| self.occupancy.is_clear(c)) {
                 tail -= 1;
@@ -334,19 +339,32 @@ impl Costs {
         }
         let within = |k: usize, cell: [i32; 3]| k >= tail && near_the_end(dir, cell, grid);
         // The first cube past a face that is not crossed.
-        let cut = (tail.max(1)..self.path.len()).find(|&k| within(k, self.path[k].0));
+        let cut = (tail.max(1)..n).find(|&k| within(k, self.path[k].0));
         let holder = |k: usize| match cut {
             Some(j) if k >= j => j - 1,
             _ => k,
         };
-        for k in 0..self.path.len() {
-            let (cell, cycles) = self.path[k];
-            self.map.add_compute(self.path[holder(k)].0, cycles);
+        // Clear cubes in a row from each cube on.
+        let mut run = vec![0u64; n + 1];
+        for k in (0..n).rev() {
+            run[k] = if self.occupancy.is_clear(self.path[k].0) { run[k + 1] + 1 } else { 0 };
+        }
+        let (step, clear_step) = (self.model.cube_step, self.model.clear_step);
+        for (k, &(cell, cycles)) in self.path.iter().enumerate() {
+            let walked = if cut.is_some_and(|j| k >= j) { cycles - step + clear_step } else { cycles };
+            self.map.add_compute(self.path[holder(k)].0, walked);
             if k > 0 && !within(k, cell) {
-                self.map.add_crossing(self.path[k - 1].0, cell, hop);
+                let mut extra = 0;
+                if walking {
+                    extra = self.model.clear_look;
+                    if near_the_end(dir, cell, grid) {
+                        extra += run[k] * clear_step;
+                    }
+                }
+                self.map.add_crossing(self.path[k - 1].0, cell, hop + extra / 2);
             }
         }
-        if let Some(&(cell, _)) = self.path.get(holder(self.path.len().saturating_sub(1))) {
+        if let Some(&(cell, _)) = self.path.get(holder(n.saturating_sub(1))) {
             self.map.add_message(cell, retire);
         }
     }
