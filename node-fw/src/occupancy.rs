@@ -63,11 +63,8 @@ impl<const W: usize> Occupancy<W> {
         while blocks_of(size, shift).iter().map(|&b| u64::from(b)).product::<u64>() > (W as u64) * 32 {
             shift += 1;
         }
-        self.words.iter_mut().for_each(|w| *w = 0);
-        self.shift = shift;
-        self.blocks = blocks_of(size, shift);
-        self.taken = 0;
-        self.ready = false;
+        self.clear();
+        (self.shift, self.blocks) = (shift, blocks_of(size, shift));
     }
 
     /// Marks the cubes `m` marks; a message outside `grid` is an error.
@@ -83,8 +80,7 @@ impl<const W: usize> Occupancy<W> {
                 if cube >= cubes {
                     return Err(Error::OutOfRange(Field::Occupancy));
                 }
-                let cell = [cube % gx, cube / gx % gy, cube / (gx * gy)];
-                self.mark(cell);
+                self.mark([cube % gx, cube / gx % gy, cube / (gx * gy)]);
             }
         }
         self.taken += 1;
@@ -116,7 +112,8 @@ impl<const W: usize> Occupancy<W> {
     /// Whether `cell` is known to hold no sphere's surface.
     #[inline]
     pub fn is_clear(&self, cell: [i32; 3]) -> bool {
-        let Some(block) = self.block(cell) else { return false };
+        // A negative coordinate wraps far past every block count.
+        let Some(block) = self.block(cell.map(|c| c as u32)) else { return false };
         self.ready && self.words.get(block / 32).is_some_and(|w| w & (1 << (block % 32)) == 0)
     }
 
@@ -153,15 +150,13 @@ impl<const W: usize> Occupancy<W> {
     }
 
     #[inline]
-    fn block(&self, cell: [i32; 3]) -> Option<usize> {
-        // A negative coordinate wraps far past every block count.
-        let [x, y, z] = cell.map(|c| (c as u32) >> self.shift);
+    fn block(&self, cell: [u32; 3]) -> Option<usize> {
+        let [x, y, z] = cell.map(|c| c >> self.shift);
         let [bx, by, bz] = self.blocks;
         (x < bx && y < by && z < bz).then(|| ((z * by + y) * bx + x) as usize)
     }
 
     fn mark(&mut self, cell: [u32; 3]) {
-        let cell = cell.map(|c| i32::try_from(c).unwrap_or(-1));
         if let Some(block) = self.block(cell)
             && let Some(w) = self.words.get_mut(block / 32)
         {

@@ -344,9 +344,9 @@ impl Costs {
             Some(j) if k >= j => j - 1,
             _ => k,
         };
-        // Clear cubes in a row from each cube on.
-        let mut run = vec![0u64; n + 1];
-        for k in (0..n).rev() {
+        // Clear cubes in a row from each cube on (none known without the map).
+        let mut run = vec![0u64; if walking { n + 1 } else { 0 }];
+        for k in (0..run.len().saturating_sub(1)).rev() {
             run[k] = if self.occupancy.is_clear(self.path[k].0) { run[k + 1] + 1 } else { 0 };
         }
         let (step, clear_step) = (self.model.cube_step, self.model.clear_step);
