@@ -72,9 +72,10 @@ fn options(balance: Option<Balance>) -> RenderOptions {
 /// Sliding on emulated boards. Emulated nodes idle in real time (virtual
 /// time follows the host's clock while they sleep), so their loads are
 /// small: a fortieth of a second and a load difference of 1% let
-/// boundaries slide there. At a tenth, once clear walks had shortened the
-/// frame, a CI run saw no slide in three tries on the mps2 array (a
-/// twentieth: one try in three without).
+/// boundaries slide there. A busy emulated node's clock falls behind the
+/// host's, so the two sides' interval indices drift apart by tens of
+/// intervals within a frame; while the nodes compared only loads of the
+/// same index, CI saw three tries without a slide (now 12-19 slides a try).
 const SLIDING: Balance =
     Balance { interval: 25_000_000, threshold: 655, step: 1, policy: SlidePolicy::Paper };
 

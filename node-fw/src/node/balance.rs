@@ -65,12 +65,21 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: us
 
     /// The paper's rule for the boundary on this node's high side: if one load is
     /// lower and under the threshold, the boundary slides one step toward the busier node.
+    ///
+    /// The paper compares the two loads "at intervals of the given time"; each
+    /// decision pairs this node's latest interval with the high neighbour's
+    /// latest report, each used once, whatever their indices. With clocks
+    /// started together these are the same interval. Clocks that drift apart
+    /// by more than an interval (an emulated board's virtual clock lags the
+    /// host's by however long it was busy) would otherwise never meet on an
+    /// index again, and the boundary would never move.
     pub(super) fn decide(&mut self) {
         let (Some(balance), Some((k, own))) = (self.balance, self.slide.own_load) else { return };
-        let Some((kn, theirs, their_extent)) = self.slide.neighbour_load[Side::Hi] else { return };
-        if k != kn || self.slide.busy(Side::Hi) || !self.has_neighbour(Side::Hi) {
+        let Some((_, theirs, their_extent)) = self.slide.neighbour_load[Side::Hi] else { return };
+        if self.slide.busy(Side::Hi) || !self.has_neighbour(Side::Hi) {
             return;
         }
+        self.slide.own_load = None;
         self.slide.neighbour_load[Side::Hi] = None;
         let d = self.driving_axis();
         let (lo, hi) = self.extent_after_giving();
