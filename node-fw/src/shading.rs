@@ -14,7 +14,7 @@ use link_proto::{LightMsg, RayKind, RayMsg, SceneHeader};
 
 use crate::digital_line::DigitalLine;
 use crate::geometry::{Direction, Grid, Line, Point, zip3};
-use crate::limits::{DIR_FRAC, Scalar};
+use crate::limits::{DIR_FRAC, ONE, Scalar};
 use crate::sphere::Sphere;
 
 /// One Q1.15 unit.
@@ -179,10 +179,31 @@ impl Scene<'_> {
         let shadow = RayMsg {
             kind: RayKind::Shadow,
             weight,
-            t_max: Some(dist),
+            t_max: (!self.beyond_the_grid(light.position)).then_some(dist),
             ..self.spawn(ray, surface, sphere, l)
         };
         Some(self.enter(shadow, weight))
+    }
+
+    /// Whether `p` lies a cube or more outside the grid's closed box on some
+    /// axis: a light there is beyond every sphere, so a shadow ray toward it
+    /// needs no `t_max`, and without one it is four bytes shorter on every
+    /// hop.
+    ///
+    /// Spheres lie in the grid's box (a node refuses any other), so a ray
+    /// meets one only before it leaves the box, at `t_exit`, and every cube
+    /// it walks ends by then too. `t_max` is the light's distance, rounded
+    /// down by under 2^-16, along a direction rounded by 2^-30 a component:
+    /// the point at `t_max` lies within 2^-13 of the light (lights are under
+    /// 2^15 cubes away), so outside the box, and `t_max > t_exit + 0.99`,
+    /// far more than any rounding of a hit's `t`. No test against `t_max`
+    /// (a hit at or beyond it, a cube ending at or beyond it) could succeed,
+    /// and the ray retires when it leaves the grid as it would have there.
+    fn beyond_the_grid(&self, p: [i32; 3]) -> bool {
+        p.iter().zip(self.grid.size()).any(|(&x, s)| {
+            let x = i64::from(x);
+            x <= -ONE || x >= (i64::from(s) + 1) * ONE
+        })
     }
 
     fn reflection(&self, ray: &RayMsg, line: &Line, surface: &Surface, sphere: &Sphere) -> Option<Child> {
@@ -237,6 +258,25 @@ impl Scene<'_> {
                 Child::Ray(ray)
             }
             None => Child::Done(outside),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_light_is_beyond_the_grid_from_one_cube_out() {
+        let Ok(grid) = Grid::new([8, 6, 4]) else { panic!("a valid grid") };
+        let header = SceneHeader { grid: [8, 6, 4], ambient: [0; 3], background: [0; 3], max_depth: 1 };
+        let scene = Scene { header: &header, grid: &grid, lights: &[] };
+        let at = |p: [f64; 3]| p.map(|x| (x * ONE as f64) as i32);
+        for far in [[-1.0, 3.0, 2.0], [9.0, 3.0, 2.0], [4.0, 7.0, 2.0], [4.0, -1.5, 2.0], [4.0, 3.0, 5.0]] {
+            assert!(scene.beyond_the_grid(at(far)), "{far:?}");
+        }
+        for near in [[-0.99, 3.0, 2.0], [8.99, 6.99, 4.99], [4.0, 3.0, 2.0], [-0.5, -0.5, -0.5]] {
+            assert!(!scene.beyond_the_grid(at(near)), "{near:?}");
         }
     }
 }

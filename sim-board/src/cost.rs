@@ -53,7 +53,7 @@ impl Default for CostModel {
     /// before the grid's end, the call and its look included) 174.1, and a
     /// look that finds the end too far 101.0; a sphere test over a mostly-missing list 213.0; a walk's
     /// set-up (the received ray's line checked, the walk resumed) 277.7; a
-    /// shaded hit with one light and a mirror 6 941.3 (the surface and both
+    /// shaded hit with one light and a mirror 6 997.4 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for
     /// the children it spawns later); an initial ray (pixel line, ray, entry
     /// cube) 2 784.6. Messages through a reliable channel, whose
@@ -76,7 +76,7 @@ impl Default for CostModel {
             clear_look: 101,
             sphere_test: 213,
             trace: 278,
-            shade: 6_941,
+            shade: 6_997,
             create: 2_785,
             ray_message: 924,
             granted_ray: 968,

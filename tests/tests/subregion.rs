@@ -310,3 +310,64 @@ fn a_sphere_sticking_out_of_the_grid_is_not_within_it() {
     assert!(!sphere(0, [7.5, 4.0, 4.0], 1.0, &grid).within(&grid));
     assert!(!sphere(0, [0.2, 4.0, 4.0], 0.25, &grid).within(&grid));
 }
+
+/// A shadow ray toward a light a cube or more outside the grid's box goes
+/// without the light's distance (`Scene::shadow_ray`): it must end as it
+/// would with it, blocked or not, for every light on that edge (one cube
+/// out, on every face and past corners) and beyond, from points on spheres
+/// that touch the grid's faces.
+#[test]
+fn a_light_a_cube_outside_the_grid_needs_no_distance() {
+    let grid = Grid::new([8; 3]).unwrap();
+    let mut rng = SmallRng::seed_from_u64(26);
+    let mut r = region(grid, [0; 3], [8; 3]);
+    let mut spheres = Vec::new();
+    for id in 0..60 {
+        let rad = rng.gen_range(0.2..1.5);
+        let c = [0; 3].map(|_: i32| rng.gen_range(rad..8.0 - rad));
+        let s = sphere(id, c, rad, &grid);
+        if r.insert(s).is_ok() {
+            spheres.push((id, c, rad));
+        }
+    }
+    let lights = [
+        [-1.0, 4.0, 4.0],
+        [9.0, 4.0, 4.0],
+        [4.0, -1.0, 4.0],
+        [4.0, 9.0, 4.0],
+        [4.0, 4.0, -1.0],
+        [4.0, 4.0, 9.0],
+        [-1.0, -1.0, -1.0],
+        [9.0, 9.0, 9.0],
+        [-1.0, 8.5, 3.0],
+        [9.6, 12.0, -4.0],
+        [-2.4, 8.0, 8.0],
+    ];
+    let (mut blocked, mut clear) = (0, 0);
+    for &(id, c, rad) in &spheres {
+        for light in lights {
+            // A point on the sphere facing the light.
+            let toward = [0, 1, 2].map(|a| light[a] - c[a]);
+            let len = toward.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let o = [0, 1, 2].map(|a| c[a] + toward[a] / len * rad);
+            let d = [0, 1, 2].map(|a| light[a] - o[a]);
+            let dist = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let line = quantise::line(o, d);
+            let Some(_) = DigitalLine::enter(&line, &grid) else { continue };
+            let with = Query {
+                ignore: Some(id),
+                t_max: Some(I16F16::from_bits((dist * 65536.0).floor() as i32)),
+                any_hit: true,
+            };
+            let without = Query { t_max: None, ..with };
+            let (a, _) = trace(&mut r, &line, &grid, &with);
+            let (b, _) = trace(&mut r, &line, &grid, &without);
+            match (a, b) {
+                (Outcome::Blocked, Outcome::Blocked) => blocked += 1,
+                (Outcome::LeftGrid | Outcome::Clear, Outcome::LeftGrid) => clear += 1,
+                other => panic!("sphere {id}, light {light:?}: {other:?}"),
+            }
+        }
+    }
+    assert!(blocked > 50 && clear > 50, "both endings tried: {blocked} blocked, {clear} clear");
+}
