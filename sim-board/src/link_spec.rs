@@ -169,25 +169,24 @@ impl LinkPreset {
     /// array rendering the quick start's frame (64x64, 60 spheres, seed 3,
     /// grid 16^3, static): the busiest node's emulated running time less
     /// what the in-memory board charges it, over its polls that did work,
-    /// gives 9 390 instructions (three QEMU runs, median, with clear walks);
-    /// the 24x24 frame of `tests/tests/emulated.rs` gives 6 195 (five runs).
-    /// One figure fits both only so far: the preset takes 7 000, chosen so
-    /// that the test frame's busiest node is charged about a tenth too much
-    /// and the quick start's a fifth too little (-18.8%; docs/links.md).
-    /// Clear walks moved both fits down (from 12 016 and 7 837): the nodes
-    /// in front pass fewer rays and their passes shorten, more than the
-    /// kernels' figures for the messages saved. It is a mean over unlike passes: the
-    /// emulated nodes poll with work 1.25-1.47 times as often as the
-    /// in-memory ones (`busy_polls` in `loads.csv`: their messages complete
-    /// a few bytes at a time, so fewer arrive together), the busier frame
-    /// more. Tracing node 0 (QEMU `-singlestep -d exec`) finds its passes
-    /// moving every byte through a UART register, and the frame decoder
-    /// copying what arrived a few bytes at a time. The other
-    /// presets stand for boards whose UARTs move bytes by interrupt or DMA,
-    /// whose pass is not measured yet: none is charged.
+    /// gives 39 700 instructions (three QEMU runs, median); the 24x24 frame
+    /// of `tests/tests/emulated.rs` gives 21 200 (five runs). One figure fits
+    /// both only so far: the preset takes 24 000, which charges the test
+    /// frame's busiest node 6.7% too much and the quick start's 26.6% too
+    /// little (docs/links.md). A poll's pass grew with the pieces of work a
+    /// poll does ([`node_fw::node::PIECES_PER_POLL`]; one piece a poll fitted
+    /// 9 390 and 6 195): the pass moves every byte those pieces send through a
+    /// UART register, so it is more a cost a message than a cost a poll,
+    /// which a figure a poll follows only roughly. The emulated nodes spent
+    /// 30% less on the test frame with six pieces a poll than with one
+    /// (2.44e6 instructions against 3.36e6-3.58e6). Tracing node 0 (QEMU
+    /// `-singlestep -d exec`) finds its passes moving every byte through a
+    /// UART register, and the frame decoder copying what arrived a few bytes
+    /// at a time. The other presets stand for boards whose UARTs move bytes
+    /// by interrupt or DMA, whose pass is not measured yet: none is charged.
     pub const fn loop_pass(self) -> u64 {
         match self {
-            LinkPreset::Emulated => 7_000,
+            LinkPreset::Emulated => 24_000,
             LinkPreset::F413 | LinkPreset::Ideal => 0,
         }
     }

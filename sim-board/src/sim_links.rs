@@ -30,6 +30,9 @@ pub struct Waiting {
     pub len: u64,
     /// Its messages: the last this many of the outbox.
     pub count: usize,
+    /// Begun by the poll sending now: the board writes what one poll sent
+    /// as one batch, whenever its wire is free.
+    pub this_poll: bool,
 }
 
 /// Bytes a message's frame of its own takes beyond what it adds to a batch:
@@ -80,6 +83,8 @@ pub struct SimLinks<'a> {
     /// Messages sent or taken that shared a frame with the ones before
     /// them: each spares its end a frame's handling.
     pub joined: u64,
+    /// Messages the poll sent, in order, until [`SimLinks::transmit`].
+    pub queued: Vec<(Port, Message)>,
 }
 
 impl SimLinks<'_> {
@@ -107,22 +112,50 @@ impl Links for SimLinks<'_> {
         self.wired.get(port.index()).copied().unwrap_or(false)
     }
 
+    /// Takes `msg` if the port has room; it goes on the wire when the poll
+    /// is over ([`SimLinks::transmit`]), as a board's loop sends what a
+    /// poll queued only after the poll's work.
     fn try_send(&mut self, port: Port, msg: Message) -> Result<(), Message> {
         if !self.wired.get(port.index()).copied().unwrap_or(false) {
             self.miswired = Some(port);
             return Err(msg);
         }
         let model = self.model(port);
-        let Some(state) = self.ports.get_mut(port.index()) else { return Err(msg) };
-        if state.occupancy + state.outbox.len() >= model.capacity {
+        let Some(state) = self.ports.get(port.index()) else { return Err(msg) };
+        let queued = self.queued.iter().filter(|(p, _)| *p == port).count();
+        if state.occupancy + state.outbox.len() + queued >= model.capacity {
             return Err(msg);
         }
+        self.queued.push((port, msg));
+        Ok(())
+    }
+}
+
+impl SimLinks<'_> {
+    /// Puts what the poll queued on the wires at `now`, the poll's end, in
+    /// the order it was sent.
+    pub fn transmit(&mut self, now: u64) {
+        self.now = now;
+        for state in self.ports.iter_mut() {
+            if let Some(w) = state.waiting.as_mut() {
+                w.this_poll = false;
+            }
+        }
+        for (port, msg) in std::mem::take(&mut self.queued) {
+            self.put_on_wire(port, msg);
+        }
+    }
+
+    fn put_on_wire(&mut self, port: Port, msg: Message) {
+        let model = self.model(port);
+        let Some(state) = self.ports.get_mut(port.index()) else { return };
         let bytes = frame_len(&msg) as u64;
         if port != Port::Host
             && let Some(added) = state.join(bytes, self.now)
         {
-            // Queued behind a busy wire: it leaves in the waiting batch, which
-            // arrives whole once its last byte has crossed.
+            // Queued behind a busy wire, or sent in the same poll: it leaves
+            // in the waiting batch, which arrives whole once its last byte
+            // has crossed.
             state.busy_until += added * model.byte;
             state.bytes += added;
             let at = state.busy_until + model.latency;
@@ -133,7 +166,7 @@ impl Links for SimLinks<'_> {
             state.outbox.push(Stamped { at, msg, len: added, joined: true, frame_start });
             self.byte_cpu += added * model.byte_cpu;
             self.joined += 1;
-            return Ok(());
+            return;
         }
         let start = self.now.max(state.busy_until);
         state.busy_until = start + bytes * model.byte;
@@ -146,9 +179,8 @@ impl Links for SimLinks<'_> {
             frame_start: start,
         };
         state.outbox.push(stamped);
-        state.waiting = Some(Waiting { start, len: bytes, count: 1 });
+        state.waiting = Some(Waiting { start, len: bytes, count: 1, this_poll: true });
         self.byte_cpu += bytes * model.byte_cpu;
-        Ok(())
     }
 }
 
@@ -157,10 +189,10 @@ impl PortState {
     /// for the wire at `now`, if one waits and it fits; the bytes it adds.
     ///
     /// The channel sends what is due together (`encode_batch`): a message
-    /// sent while the frames before it still wait for the wire goes with
-    /// them. A frame once on the wire takes nothing more.
+    /// sent while the frames before it still wait for the wire, or in the
+    /// same poll, goes with them. A frame once on the wire takes nothing more.
     fn join(&mut self, bytes: u64, now: u64) -> Option<u64> {
-        let w = self.waiting.as_mut().filter(|w| w.start > now)?;
+        let w = self.waiting.as_mut().filter(|w| w.start > now || w.this_poll)?;
         let added = bytes.saturating_sub(FRAME_ALONE) + if w.count == 1 { BATCH_HEAD } else { 0 };
         if w.len + added > MAX_FRAME_LEN as u64 {
             return None;
@@ -186,8 +218,11 @@ mod tests {
     fn a_message_joins_only_a_batch_still_waiting_for_the_wire() {
         let mut port = PortState::default();
         assert_eq!(port.join(40, 0), None, "nothing waits");
-        port.waiting = Some(Waiting { start: 100, len: 40, count: 1 });
+        port.waiting = Some(Waiting { start: 100, len: 40, count: 1, this_poll: false });
         assert_eq!(port.join(40, 100), None, "on the wire from 100: too late");
+        port.waiting = Some(Waiting { start: 100, len: 40, count: 1, this_poll: true });
+        assert_eq!(port.join(40, 100), Some(34), "sent by the same poll: one batch");
+        port.waiting = Some(Waiting { start: 100, len: 40, count: 1, this_poll: false });
         // A frame's 8 bytes spared; the first to join adds the batch's head.
         assert_eq!(port.join(40, 99), Some(34));
         assert_eq!(port.join(40, 99), Some(32));

@@ -65,8 +65,12 @@ impl Slot {
                 miswired: None,
                 byte_cpu: 0,
                 joined: 0,
+                queued: Vec::new(),
             };
             let work = self.node.poll(self.clock, &mut links);
+            // The board sends once the poll's work is done.
+            let done = if work.is_busy() { config.cost.split(&work).total().max(1) } else { 0 };
+            links.transmit(self.clock + done);
             let (miswired, byte_cpu) = (links.miswired, links.byte_cpu);
             self.miswired = self.miswired.or(miswired);
             let spared = links.joined * config.cost.frame_spared();

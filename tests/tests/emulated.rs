@@ -148,11 +148,11 @@ fn a_3x3x3_stm32_array_matches_the_in_memory_board() {
 /// about what the emulated board spends (instructions on the emulated
 /// Cortex-M3, cycles on the in-memory board: the same unit under `-icount
 /// shift=0`). An emulated node's passes depend on when bytes arrive, so one
-/// run's busiest node varies by a few percent: measured 3.36e6-3.58e6
-/// instructions over 15 runs, charged 3.68e6 (medians of five +8.3% to
-/// +8.8%; the loop's pass is chosen between two frames' fits, see
-/// `LinkPreset::loop_pass`). The median of five runs is what is compared; without the
-/// loop's pass the board charged 71% too little.
+/// run's busiest node varies by a few percent: measured 2.37e6-2.54e6
+/// instructions over 5 runs, charged 2.60e6 (+6.7% on their median; the
+/// loop's pass is chosen between two frames' fits, see
+/// `LinkPreset::loop_pass`). The median of five runs is what is compared;
+/// without the loop's pass the board charges 56% too little.
 #[test]
 fn the_in_memory_board_predicts_the_busiest_emulated_node() {
     let _one = one_array();
