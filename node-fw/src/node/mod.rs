@@ -204,7 +204,7 @@ pub struct Node<const S: usize, const R: usize, const C: usize, const P: usize, 
 /// wire once. But a ray waits for the poll's other pieces before it leaves,
 /// and the node behind it for the ray. On the in-memory board (1000
 /// spheres, 256x256, preview cut), against one piece a poll: six took
-/// 2.2-3.5% off the frame on ideal links and 3.1-4.1% on the real-board
+/// 2.3-3.6% off the frame on ideal links and 3.3-4.1% on the real-board
 /// ones; eight about as much; twelve made the 4x4x4 cube's frame 2.7%
 /// slower on ideal links, sixteen 28%.
 pub const PIECES_PER_POLL: usize = 6;
