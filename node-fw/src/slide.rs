@@ -96,8 +96,8 @@ pub struct SlideState {
     /// A request sent to the neighbour on this side, not yet answered.
     pub requested: PerSide<bool>,
     /// The neighbour's latest load report per side, until a decision uses
-    /// it: (interval, load, extent).
-    pub neighbour_load: PerSide<Option<(u32, Load, u16)>>,
+    /// it: (load, extent).
+    pub neighbour_load: PerSide<Option<(Load, u16)>>,
     /// This node's latest interval load, until a decision uses it.
     pub own_load: Option<(u32, Load)>,
     /// Average running time per interval of this node and of the high-side

@@ -196,6 +196,7 @@ impl Board {
                 miswired: None,
                 framed: config.faults.map(|_| framed_links(&config, wired)),
                 rng: std::array::from_fn(|p| FaultRng::new(config.faults.map_or(0, |f| f.seed), id, p)),
+                queued: Vec::new(),
             });
         }
         let framed = config.faults.is_some();

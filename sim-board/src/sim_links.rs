@@ -84,7 +84,7 @@ pub struct SimLinks<'a> {
     /// them: each spares its end a frame's handling.
     pub joined: u64,
     /// Messages the poll sent, in order, until [`SimLinks::transmit`].
-    pub queued: Vec<(Port, Message)>,
+    pub queued: &'a mut Vec<(Port, Message)>,
 }
 
 impl SimLinks<'_> {
@@ -141,9 +141,11 @@ impl SimLinks<'_> {
                 w.this_poll = false;
             }
         }
-        for (port, msg) in std::mem::take(&mut self.queued) {
+        let mut queued = std::mem::take(self.queued);
+        for (port, msg) in queued.drain(..) {
             self.put_on_wire(port, msg);
         }
+        *self.queued = queued;
     }
 
     fn put_on_wire(&mut self, port: Port, msg: Message) {

@@ -25,6 +25,9 @@ pub(crate) struct Slot {
     /// Framed mode: the node's reliable channels and one fault generator per port.
     pub(crate) framed: Option<Box<SimFramed>>,
     pub(crate) rng: [FaultRng; 7],
+    /// What a poll sent, until the board puts it on the wires (kept to
+    /// spare an allocation a poll).
+    pub(crate) queued: Vec<(Port, link_proto::Message)>,
 }
 
 impl Slot {
@@ -65,37 +68,30 @@ impl Slot {
                 miswired: None,
                 byte_cpu: 0,
                 joined: 0,
-                queued: Vec::new(),
+                queued: &mut self.queued,
             };
             let work = self.node.poll(self.clock, &mut links);
+            let charged = work.is_busy().then(|| config.cost.split(&work));
             // The board sends once the poll's work is done.
-            let done = if work.is_busy() { config.cost.split(&work).total().max(1) } else { 0 };
-            links.transmit(self.clock + done);
+            links.transmit(self.clock + charged.map_or(0, |c| c.total().max(1)));
             let (miswired, byte_cpu) = (links.miswired, links.byte_cpu);
             self.miswired = self.miswired.or(miswired);
             let spared = links.joined * config.cost.frame_spared();
-            worked |= self.advance(&work, byte_cpu, spared, end, config);
+            worked |= self.advance(charged, byte_cpu, spared, end);
         }
         worked
     }
 
-    /// Moves the clock past a poll: by the work's cost and the CPU cycles its
-    /// bytes took (`byte_cpu`), less what messages sharing a frame spared
-    /// (`spared`), or, idle, to the next arrival in this round or
-    /// the round's end. Returns whether work was done.
+    /// Moves the clock past a poll: by its work's cost (`charged`, none for
+    /// a poll that did no work) and the CPU cycles its bytes took
+    /// (`byte_cpu`), less what messages sharing a frame spared (`spared`),
+    /// or, idle, to the next arrival in this round or the round's end.
+    /// Returns whether work was done.
     ///
     /// A poll that did no work of the node's (only acknowledgements moved)
     /// is not charged its bytes: the node's load meter counts it as waiting.
-    fn advance(
-        &mut self,
-        work: &node_fw::Work,
-        byte_cpu: u64,
-        spared: u64,
-        end: u64,
-        config: &SimConfig,
-    ) -> bool {
-        if work.is_busy() {
-            let mut split = config.cost.split(work);
+    fn advance(&mut self, charged: Option<Busy>, byte_cpu: u64, spared: u64, end: u64) -> bool {
+        if let Some(mut split) = charged {
             split.messaging = (split.messaging + byte_cpu).saturating_sub(spared);
             self.busy += split;
             self.clock += split.total().max(1);
@@ -143,7 +139,7 @@ impl Slot {
                 written
             });
             self.miswired = self.miswired.or(miswired);
-            worked |= self.advance(&work, byte_cpu, 0, end, config);
+            worked |= self.advance(work.is_busy().then(|| config.cost.split(&work)), byte_cpu, 0, end);
         }
         worked
     }

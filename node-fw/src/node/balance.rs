@@ -75,7 +75,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: us
     /// index again, and the boundary would never move.
     pub(super) fn decide(&mut self) {
         let (Some(balance), Some((k, own))) = (self.balance, self.slide.own_load) else { return };
-        let Some((_, theirs, their_extent)) = self.slide.neighbour_load[Side::Hi] else { return };
+        let Some((theirs, their_extent)) = self.slide.neighbour_load[Side::Hi] else { return };
         if self.slide.busy(Side::Hi) || !self.has_neighbour(Side::Hi) {
             return;
         }

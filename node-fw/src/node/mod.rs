@@ -116,7 +116,12 @@ impl Work {
     /// Whether the node's own work went on: a walk, a shaded hit or an
     /// initial ray (each makes progress: see `Node::compute`).
     pub fn computed(&self) -> bool {
-        self.traces + self.shades + self.created > 0
+        self.pieces() > 0
+    }
+
+    /// Pieces of the node's own work: walks, shaded hits, initial rays.
+    pub fn pieces(&self) -> u32 {
+        self.traces + self.shades + self.created
     }
 }
 
@@ -383,9 +388,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: us
         if self.phase == Phase::Rendering {
             self.balance_tick(now);
             for _ in 0..PIECES_PER_POLL {
-                let before = work.traces + work.shades + work.created;
+                let before = work.pieces();
                 self.compute(&mut work);
-                if work.traces + work.shades + work.created == before {
+                if work.pieces() == before {
                     break;
                 }
             }

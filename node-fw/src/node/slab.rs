@@ -26,7 +26,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: us
         match msg {
             Message::Load(l) => {
                 self.slide.neighbour_load[side] =
-                    Some((l.interval, Load { running: l.running, waiting: l.waiting }, l.extent));
+                    Some((Load { running: l.running, waiting: l.waiting }, l.extent));
                 self.decide();
             }
             Message::SlideRequest(o) => {
