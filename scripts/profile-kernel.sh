@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Where a kernel's instructions go, function by function, on the emulated
 # Cortex-M3: `hop_granted` (one end of a hop on a grant, the default),
-# `trace` (a received ray's walk set-up), `reply` (a short message's end) or
+# `trace` (a received ray's walk set-up), `sphere_hit` (a ray/sphere test
+# that hits), `reply` (a short message's end) or
 # `retire_batch` (retirements of six records, the host's end included, per
 # message). Builds the `kernels` binary with the `profile` feature and PROFILE_KERNEL set (it then runs only that kernel),
 # runs it under QEMU one instruction at a time (-singlestep -d exec), and sums
@@ -16,9 +17,10 @@ KERNEL=${1:-hop_granted}
 case "$KERNEL" in
     hop_granted) ENTRY=kernels::granted_hops ;;
     trace) ENTRY=kernels::walk_setups ;;
+    sphere_hit) ENTRY=kernels::sphere_hits ;;
     reply) ENTRY=kernels::replies ;;
     retire_batch) ENTRY=kernels::retirements ;;
-    *) echo "error: no kernel $KERNEL to profile (hop_granted, trace, reply or retire_batch)" >&2; exit 2 ;;
+    *) echo "error: no kernel $KERNEL to profile (hop_granted, trace, sphere_hit, reply or retire_batch)" >&2; exit 2 ;;
 esac
 command -v python3 >/dev/null || { echo "error: python3 is needed to sum the trace" >&2; exit 1; }
 

@@ -179,30 +179,37 @@ impl Sphere {
         }
         let b: i128 = f.iter().zip(&d).map(|(&x, &y)| i128::from(x) * i128::from(y)).sum();
         let c: i128 = f.iter().map(|&x| i128::from(x) * i128::from(x)).sum::<i128>() - i128::from(self.r2);
-        let s = disc.unsigned_abs().isqrt() as i128;
+        // The root only where a depth needs it: a sphere behind the origin
+        // is missed whatever it is.
+        let s = || crate::wide::isqrt(disc.unsigned_abs()) as i128;
         let (t, inside) = match (c.signum(), b < 0) {
             // Outside, sphere ahead: near root t0 = c / q with q = s - b > 0.
-            (1, true) => (div_t(c, s - b), false),
+            (1, true) => (depth(c, s() - b)?, false),
             (1, false) => return None,
             // On the surface: enters at t = 0 if heading inward.
             (0, true) => (0, false),
             (0, false) => return None,
             // Inside: far root. With b < 0, t1 = q / a (q = s - b > 0); with
             // b >= 0, t1 = c / q (q = -(b + s) < 0), both free of cancellation.
-            (_, true) => (div_t(s - b, a), true),
-            (_, false) => (div_t(c, -(b + s)), true),
+            (_, true) => (depth(s() - b, a)?, true),
+            (_, false) => (depth(-c, b + s())?, true),
         };
-        Some(Root { t: Scalar::from_bits(i32::try_from(t).ok()?), inside })
+        Some(Root { t: Scalar::from_bits(t), inside })
     }
 }
 
-/// `num / den` scaled to a raw Q16.16 parameter, rounded toward zero.
+/// `num / den` scaled to a raw Q16.16 parameter, rounded toward zero; `None`
+/// where it does not fit one (or `den` is 0). Both are positive here.
 ///
 /// Both roots have the form (units 2^-32 over 2^-46) or (2^-46 over 2^-60),
-/// so the Q16.16 value is `num 2^30 / den`.
-fn div_t(num: i128, den: i128) -> i128 {
-    if den == 0 {
-        return i128::MAX;
+/// so the Q16.16 value is `num 2^30 / den`. Within the documented ranges
+/// both are under 2^63 ([`crate::limits`]) and a 64-bit quotient path
+/// ([`crate::wide::div_shl30`]) gives it; the 128-bit division stays for
+/// anything wider.
+fn depth(num: i128, den: i128) -> Option<i32> {
+    match (u64::try_from(num), u64::try_from(den)) {
+        (Ok(n), Ok(d)) => crate::wide::div_shl30(n, d).map(|t| t as i32),
+        _ if den == 0 => None,
+        _ => i32::try_from((num << DIR_FRAC) / den).ok(),
     }
-    (num << DIR_FRAC) / den
 }

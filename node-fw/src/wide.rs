@@ -27,7 +27,7 @@ pub fn isqrt(n: u128) -> u128 {
     match u64::try_from(n) {
         Ok(n) => u128::from(isqrt64(n)),
         Err(_) if n >> 92 == 0 => u128::from(isqrt_by_tangent(n)),
-        Err(_) => n.isqrt(),
+        Err(_) => u128::from(isqrt_beyond_92(n)),
     }
 }
 
@@ -53,6 +53,30 @@ fn isqrt_by_tangent(n: u128) -> u64 {
     tangent_step(n, s << k)
 }
 
+/// `floor(sqrt(n))` for `n >= 2^92` (a sphere test's discriminant reaches
+/// 2^106 with the largest radii).
+///
+/// The root of `n / 4^j`, cut to 91 or 92 bits, is `s >= 2^45`, and `a = s
+/// 2^j` (`j <= 18`) is under the root by less than `2^j`: the tangent at `a`
+/// overshoots it by under `2^(j-46)`, less than one, as in [`tangent_step`].
+/// Its step `(n - a^2) / 2a` (up to 2^83 over at least 2^46) is taken from
+/// both shifted right by 20, which leaves it at most two under; the root is
+/// then found from squares, a step or two either way.
+fn isqrt_beyond_92(n: u128) -> u64 {
+    let bits = 128 - n.leading_zeros();
+    let j = (bits - 91) / 2;
+    let a = isqrt_by_tangent(n >> (2 * j)) << j;
+    let step = ((n - square(a)) >> 20) as u64 / ((u128::from(a) >> 19) as u64 + 1);
+    let mut y = a + step;
+    while square(y) > n {
+        y -= 1;
+    }
+    while y < u64::MAX && square(y + 1) <= n {
+        y += 1;
+    }
+    y
+}
+
 /// `floor(sqrt(n))` from `a = s 2^k`, `s = floor(sqrt(n / 4^k)) >= 2^15` (or
 /// `>= 2^31` with `k <= 14`).
 ///
@@ -65,6 +89,39 @@ fn tangent_step(n: u128, a: u64) -> u64 {
     let d = (n - square(a)) as u64;
     let y = a + d / (2 * a);
     if (y - a) * (y + a) > d { y - 1 } else { y }
+}
+
+/// `floor(n 2^30 / d)`, or `None` if that is `2^31` or more or `d` is 0:
+/// a ray's depth in Q16.16 from a sphere test's numerator and denominator
+/// (up to 2^63 each, in units whose ratio needs the 2^30).
+///
+/// In 128-bit arithmetic this is a software division of a 94-bit value,
+/// thousands of instructions on a Cortex-M3. Here: the quotient is under
+/// 2^31 exactly when `n < 2 d`. For `d < 2^33`, `n 2^30 < 2^64` and one
+/// 64-bit division is exact. Otherwise both are shifted right by `e` so that
+/// `d >> e` has 32 bits, and dividing by `(d >> e) + 1` gives an estimate at
+/// or under the quotient by at most 2 (`(x + y) / (y (y + 1)) < 1 + 2^-31`
+/// for `x / y < 2`, `y >= 2^31`); the exact remainder, a 64 x 64-bit product
+/// taken from `n 2^30`, corrects it.
+#[inline]
+pub fn div_shl30(n: u64, d: u64) -> Option<u32> {
+    if d == 0 || n >> 1 >= d {
+        return None;
+    }
+    if d >> 33 == 0 {
+        // n < 2 d < 2^34, so n 2^30 < 2^64.
+        return u32::try_from((n << 30) / d).ok();
+    }
+    let e = 32 - d.leading_zeros();
+    let wide = u128::from(n) << 30;
+    // wide < 2 d 2^30 < 2^(63 + e): the shifted value fits 64 bits.
+    let mut q = ((wide >> e) as u64) / ((d >> e) + 1);
+    let mut rem = wide - mul_wide(q, d);
+    while rem >= u128::from(d) {
+        q += 1;
+        rem -= u128::from(d);
+    }
+    u32::try_from(q).ok()
 }
 
 /// Division of `c 2^30` by a fixed `d` in `[2^40, 2^42]` for `c <= d`, by
@@ -132,6 +189,35 @@ mod tests {
     }
 
     #[test]
+    fn depth_quotients_at_the_edges() {
+        let want = |n: u64, d: u64| {
+            u32::try_from((u128::from(n) << 30) / u128::from(d)).ok().filter(|&q| q < 1 << 31)
+        };
+        for bits in 0..64u32 {
+            let d = 1u64 << bits;
+            for d in [d - 1, d, d + 1, d.saturating_mul(3) / 2, u64::MAX >> (63 - bits)] {
+                if d == 0 {
+                    assert_eq!(div_shl30(5, 0), None);
+                    continue;
+                }
+                for n in [
+                    0,
+                    1,
+                    d / 3,
+                    d - 1,
+                    d,
+                    d.saturating_add(1),
+                    (2 * u128::from(d) - 1).min(u128::from(u64::MAX)) as u64,
+                ] {
+                    assert_eq!(div_shl30(n, d), want(n, d), "n = {n}, d = {d}");
+                }
+                assert_eq!(div_shl30(d.saturating_mul(2), d), want(d.saturating_mul(2), d), "d = {d}");
+            }
+        }
+        assert_eq!(div_shl30(u64::MAX, u64::MAX), Some(1 << 30));
+    }
+
+    #[test]
     fn quotients_at_the_edges() {
         for d in [1u64 << 40, (1 << 40) + 1, (1 << 42) - 1, 1 << 42, 3 << 40] {
             let v = Divisor30::new(d).unwrap();
@@ -158,6 +244,16 @@ mod tests {
             let c = if near { d - (c % 1024).min(d) } else { c % (d + 1) };
             let want = (u128::from(c) << 30) / u128::from(d);
             prop_assert_eq!(Divisor30::new(d).and_then(|v| v.div_shl30(c)).map(u128::from), Some(want));
+        }
+
+        #[test]
+        fn depth_quotients_are_exact(n in any::<u64>(), d in any::<u64>(), shift in 0u32..64, near in any::<bool>()) {
+            // Divisors of every length, and numerators near the 2^31 limit as
+            // often as anywhere below it.
+            let d = d >> shift;
+            let n = if near { (2 * u128::from(d)).saturating_sub(u128::from(n % 4096)) as u64 } else { n >> (shift / 2) };
+            let want = if d == 0 { None } else { u32::try_from((u128::from(n) << 30) / u128::from(d)).ok() };
+            prop_assert_eq!(div_shl30(n, d), want.filter(|&q| q < 1 << 31));
         }
 
         #[test]
