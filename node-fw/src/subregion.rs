@@ -71,6 +71,10 @@ pub struct TraceStats {
     pub cube_steps: u32,
     /// Ray/sphere tests made.
     pub sphere_tests: u32,
+    /// Of those, the tests whose line met the sphere ahead of its origin:
+    /// the hit's depth was computed (a root and a division, several times a
+    /// miss's cost).
+    pub sphere_hits: u32,
 }
 
 /// A box of unit cubes `[lo, hi)` with per-cube sphere lists.
@@ -284,7 +288,8 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         self.trace_observed(line, walk, best, query, stats, |_, _| {})
     }
 
-    /// [`Subregion::trace`], calling `visit(cell, sphere_tests)` for every cube
+    /// [`Subregion::trace`], calling `visit(cell, stats)` with each cube's own
+    /// [`TraceStats`] (its tests and hits) for every cube
     /// walked (for cost maps; a no-op closure compiles away).
     pub fn trace_observed(
         &mut self,
@@ -293,7 +298,7 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         best: &mut Option<Hit>,
         query: &Query,
         stats: &mut TraceStats,
-        mut visit: impl FnMut([i32; 3], u32),
+        mut visit: impl FnMut([i32; 3], TraceStats),
     ) -> Outcome {
         self.ensure_index();
         let stamp = self.next_stamp();
@@ -302,9 +307,16 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
             let Some(cube) = self.bounds.index(cell).filter(|_| self.owned.index(cell).is_some()) else {
                 return Outcome::Leave;
             };
-            let tests_before = stats.sphere_tests;
+            let before = *stats;
             let done = self.test_cube(cube, line, best, query, stamp, stats);
-            visit(cell, stats.sphere_tests - tests_before);
+            visit(
+                cell,
+                TraceStats {
+                    cube_steps: 0,
+                    sphere_tests: stats.sphere_tests - before.sphere_tests,
+                    sphere_hits: stats.sphere_hits - before.sphere_hits,
+                },
+            );
             if let Some(done) = done {
                 return done;
             }
@@ -353,6 +365,7 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
             let Some(root) = sphere.intersect(line) else {
                 continue;
             };
+            stats.sphere_hits += 1;
             if query.t_max.is_some_and(|m| root.t >= m) {
                 continue;
             }

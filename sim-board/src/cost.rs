@@ -14,6 +14,9 @@ pub struct CostModel {
     pub clear_look: u64,
     /// One ray/sphere test.
     pub sphere_test: u64,
+    /// What a test that meets its sphere ahead costs beyond a miss: the
+    /// discriminant's root and the hit's depth.
+    pub sphere_hit: u64,
     /// Setting up one walk (validating and resuming a ray).
     pub trace: u64,
     /// Shading one hit (evaluating and spawning children).
@@ -51,7 +54,7 @@ impl Default for CostModel {
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
     /// test) 109.1; a cube walked on through the occupancy map (from ten cubes
     /// before the grid's end, the call and its look included) 174.1, and a
-    /// look that finds the end too far 101.0; a sphere test over a mostly-missing list 213.0; a walk's
+    /// look that finds the end too far 101.0; a sphere test over a mostly-missing list 211.0, and one that meets its sphere ahead 1 525.7 (the root and the depth: 1 307 more); a walk's
     /// set-up (the received ray's line checked, the walk resumed) 277.7; a
     /// shaded hit with one light and a mirror 6 997.4 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for
@@ -75,6 +78,7 @@ impl Default for CostModel {
             clear_step: 174,
             clear_look: 101,
             sphere_test: 213,
+            sphere_hit: 1_307,
             trace: 278,
             shade: 6_997,
             create: 2_785,
@@ -112,6 +116,7 @@ impl CostModel {
                 + u64::from(w.clear_steps) * self.clear_step
                 + u64::from(w.clear_looks) * self.clear_look
                 + u64::from(w.sphere_tests) * self.sphere_test
+                + u64::from(w.sphere_hits) * self.sphere_hit
                 + u64::from(w.shades) * self.shade
                 + u64::from(w.created) * self.create,
             setup: u64::from(w.traces) * self.trace,
@@ -247,6 +252,7 @@ mod tests {
             clear_step: 170,
             clear_look: 95,
             sphere_test: 224,
+            sphere_hit: 1_290,
             trace: 440,
             shade: 7_186,
             create: 2_924,
@@ -263,6 +269,7 @@ mod tests {
             clear_steps: 4,
             clear_looks: 2,
             sphere_tests: 3,
+            sphere_hits: 2,
             traces: 2,
             shades: 1,
             created: 1,
@@ -275,7 +282,7 @@ mod tests {
             extra_records: 3,
         };
         let split = c.split(&w);
-        assert_eq!(split.compute, 7 * 114 + 4 * 170 + 2 * 95 + 3 * 224 + 7_186 + 2_924);
+        assert_eq!(split.compute, 7 * 114 + 4 * 170 + 2 * 95 + 3 * 224 + 2 * 1_290 + 7_186 + 2_924);
         assert_eq!(split.setup, 2 * 440);
         assert_eq!(split.messaging, 2 * 1_545 + 1_872 + 4 * 984 + 2 * 1_603 + 3 * 462);
         assert_eq!(split.total(), c.charge(&w));

@@ -85,18 +85,26 @@ fn mailbox_tests_each_sphere_once_per_walk() {
     let line = quantise::line([0.1, 0.2, 0.3], [1.0, 1.0, 1.0]);
     let (out, stats) = trace(&mut r, &line, &grid, &Query::default());
     assert!(matches!(out, Outcome::Hit(h) if h.sphere == 0));
-    assert_eq!(stats.sphere_tests, 1);
+    assert_eq!((stats.sphere_tests, stats.sphere_hits), (1, 1));
     // A miss (0.636 from the centre) that walks through two of its cubes,
     // (3,3,3) and (4,3,3), and then through none.
     let line = quantise::line([0.0, 3.55, 3.55], [1.0, 0.0, 0.0]);
     let (out, stats) = trace(&mut r, &line, &grid, &Query::default());
     assert_eq!(out, Outcome::LeftGrid);
-    assert_eq!(stats.sphere_tests, 1);
+    assert_eq!((stats.sphere_tests, stats.sphere_hits), (1, 0));
     // A diagonal miss (0.6 from the centre) through three of its cubes.
     let line = quantise::line([3.0, 3.0, 4.6], [1.0, 1.0, 0.0]);
     let (out, stats) = trace(&mut r, &line, &grid, &Query::default());
     assert_eq!(out, Outcome::LeftGrid);
-    assert_eq!(stats.sphere_tests, 1);
+    assert_eq!((stats.sphere_tests, stats.sphere_hits), (1, 0));
+    // Away from the sphere, the line through its centre meets it behind the
+    // origin: a test, no hit (the depth is not computed).
+    let line = quantise::line([5.5, 5.5, 5.5], [1.0, 1.0, 1.0]);
+    let mut from_inside = region(grid, [0; 3], [8; 3]);
+    from_inside.insert(sphere(0, [4.0; 3], 2.5, &grid)).unwrap();
+    let (out, stats) = trace(&mut from_inside, &line, &grid, &Query::default());
+    assert_eq!(out, Outcome::LeftGrid);
+    assert_eq!((stats.sphere_tests, stats.sphere_hits), (1, 0));
 }
 
 #[test]

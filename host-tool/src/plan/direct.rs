@@ -403,9 +403,11 @@ fn trace(
     if let Some(c) = costs.as_deref_mut() {
         c.path.clear();
     }
-    let outcome = region.trace_observed(&line, &mut walk, &mut best, &query, &mut stats, |cell, tests| {
+    let outcome = region.trace_observed(&line, &mut walk, &mut best, &query, &mut stats, |cell, cube| {
         if let Some(c) = costs.as_deref_mut() {
-            let cycles = c.model.cube_step + u64::from(tests) * c.model.sphere_test;
+            let cycles = c.model.cube_step
+                + u64::from(cube.sphere_tests) * c.model.sphere_test
+                + u64::from(cube.sphere_hits) * c.model.sphere_hit;
             c.path.push((cell, cycles));
         }
         last = cell;

@@ -84,6 +84,8 @@ pub struct Work {
     pub clear_looks: u32,
     /// Ray/sphere tests.
     pub sphere_tests: u32,
+    /// Of those, the tests that met their sphere ahead (the hit's depth computed).
+    pub sphere_hits: u32,
     /// Ray walks through the subregion.
     pub traces: u32,
     /// Hits shaded (children evaluated).

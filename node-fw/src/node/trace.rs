@@ -70,6 +70,7 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: us
         work.traces += 1;
         work.cube_steps += stats.cube_steps;
         work.sphere_tests += stats.sphere_tests;
+        work.sphere_hits += stats.sphere_hits;
         self.totals.rays += 1;
         self.totals.cube_steps += stats.cube_steps;
         self.totals.sphere_tests += stats.sphere_tests;
