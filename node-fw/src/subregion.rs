@@ -77,6 +77,17 @@ pub struct TraceStats {
     pub sphere_hits: u32,
 }
 
+impl TraceStats {
+    /// The work counted since `before`, a copy of these stats taken earlier.
+    pub fn since(&self, before: &TraceStats) -> TraceStats {
+        TraceStats {
+            cube_steps: self.cube_steps - before.cube_steps,
+            sphere_tests: self.sphere_tests - before.sphere_tests,
+            sphere_hits: self.sphere_hits - before.sphere_hits,
+        }
+    }
+}
+
 /// A box of unit cubes `[lo, hi)` with per-cube sphere lists.
 #[derive(Debug, Clone)]
 pub struct Subregion<const S: usize, const R: usize, const C: usize> {
@@ -309,14 +320,7 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
             };
             let before = *stats;
             let done = self.test_cube(cube, line, best, query, stamp, stats);
-            visit(
-                cell,
-                TraceStats {
-                    cube_steps: 0,
-                    sphere_tests: stats.sphere_tests - before.sphere_tests,
-                    sphere_hits: stats.sphere_hits - before.sphere_hits,
-                },
-            );
+            visit(cell, stats.since(&before));
             if let Some(done) = done {
                 return done;
             }

@@ -54,7 +54,9 @@ impl Default for CostModel {
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
     /// test) 109.1; a cube walked on through the occupancy map (from ten cubes
     /// before the grid's end, the call and its look included) 174.1, and a
-    /// look that finds the end too far 101.0; a sphere test over a mostly-missing list 211.0, and one that meets its sphere ahead 1 525.7 (the root and the depth: 1 307 more); a walk's
+    /// look that finds the end too far 101.0; a sphere test over a
+    /// mostly-missing list 211.0, and one that meets its sphere ahead 1 525.7
+    /// (the root and the depth: 1 307 more); a walk's
     /// set-up (the received ray's line checked, the walk resumed) 277.7; a
     /// shaded hit with one light and a mirror 6 997.4 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for

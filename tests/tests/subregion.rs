@@ -100,9 +100,9 @@ fn mailbox_tests_each_sphere_once_per_walk() {
     // Away from the sphere, the line through its centre meets it behind the
     // origin: a test, no hit (the depth is not computed).
     let line = quantise::line([5.5, 5.5, 5.5], [1.0, 1.0, 1.0]);
-    let mut from_inside = region(grid, [0; 3], [8; 3]);
-    from_inside.insert(sphere(0, [4.0; 3], 2.5, &grid)).unwrap();
-    let (out, stats) = trace(&mut from_inside, &line, &grid, &Query::default());
+    let mut behind = region(grid, [0; 3], [8; 3]);
+    behind.insert(sphere(0, [4.0; 3], 2.5, &grid)).unwrap();
+    let (out, stats) = trace(&mut behind, &line, &grid, &Query::default());
     assert_eq!(out, Outcome::LeftGrid);
     assert_eq!((stats.sphere_tests, stats.sphere_hits), (1, 0));
 }
