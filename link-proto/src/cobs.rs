@@ -83,7 +83,8 @@ pub fn encode_in_place(buf: &mut [u8]) -> Option<()> {
 /// The top bit of each zero byte of `w`, exactly: `(b & 0x7F) + 0x7F` has
 /// its top bit set when `b`'s low bits are not all zero, and never carries
 /// into the next byte.
-fn zero_bytes(w: u32) -> u32 {
+#[inline(always)]
+pub(crate) fn zero_bytes(w: u32) -> u32 {
     !(((w & 0x7F7F_7F7F) + 0x7F7F_7F7F) | w) & 0x8080_8080
 }
 

@@ -57,16 +57,60 @@ fn lookup(table: &[u32; 256], x: u32) -> u32 {
 
 /// CRC-32C of `bytes` (initial value and final xor all ones, reflected).
 pub fn checksum(bytes: &[u8]) -> u32 {
-    let [t0, t1, t2, t3] = &TABLES;
     let mut crc = !0u32;
     let mut words = bytes.chunks_exact(4);
     for word in &mut words {
-        let w = u32::from_le_bytes(word.try_into().unwrap_or([0; 4]));
-        let x = crc ^ w;
-        crc = lookup(t3, x) ^ lookup(t2, x >> 8) ^ lookup(t1, x >> 16) ^ lookup(t0, x >> 24);
+        crc = fold_word(crc, u32::from_le_bytes(word.try_into().unwrap_or([0; 4])));
     }
     for &b in words.remainder() {
-        crc = lookup(t0, crc ^ u32::from(b)) ^ (crc >> 8);
+        crc = lookup(&TABLES[0], crc ^ u32::from(b)) ^ (crc >> 8);
+    }
+    !crc
+}
+
+/// `crc` with the four bytes of the little-endian word `w` folded in.
+#[inline(always)]
+fn fold_word(crc: u32, w: u32) -> u32 {
+    let [t0, t1, t2, t3] = &TABLES;
+    let x = crc ^ w;
+    lookup(t3, x) ^ lookup(t2, x >> 8) ^ lookup(t1, x >> 16) ^ lookup(t0, x >> 24)
+}
+
+/// [`checksum`] of `bytes`, which are XORed with `mask` in place in the
+/// same pass: byte `i` with byte `i % 4` of `mask`, little-endian. Also
+/// whether any byte is zero once masked (the frame's stuffing then has work
+/// to do, see [`crate::frame`]).
+pub fn checksum_then_mask(bytes: &mut [u8], mask: u32) -> (u32, bool) {
+    let (mut crc, mut zeros) = (!0u32, 0u32);
+    let mut words = bytes.chunks_exact_mut(4);
+    for word in &mut words {
+        let w = u32::from_le_bytes((&*word).try_into().unwrap_or([0; 4]));
+        crc = fold_word(crc, w);
+        let masked = w ^ mask;
+        zeros |= crate::cobs::zero_bytes(masked);
+        word.copy_from_slice(&masked.to_le_bytes());
+    }
+    for (b, k) in words.into_remainder().iter_mut().zip(mask.to_le_bytes()) {
+        crc = lookup(&TABLES[0], crc ^ u32::from(*b)) ^ (crc >> 8);
+        *b ^= k;
+        zeros |= u32::from(*b == 0);
+    }
+    (!crc, zeros != 0)
+}
+
+/// [`checksum`] of `bytes` as they were before [`checksum_then_mask`]
+/// masked them with `mask`, which this undoes in place in the same pass.
+pub fn unmask_then_checksum(bytes: &mut [u8], mask: u32) -> u32 {
+    let mut crc = !0u32;
+    let mut words = bytes.chunks_exact_mut(4);
+    for word in &mut words {
+        let w = u32::from_le_bytes((&*word).try_into().unwrap_or([0; 4])) ^ mask;
+        crc = fold_word(crc, w);
+        word.copy_from_slice(&w.to_le_bytes());
+    }
+    for (b, k) in words.into_remainder().iter_mut().zip(mask.to_le_bytes()) {
+        *b ^= k;
+        crc = lookup(&TABLES[0], crc ^ u32::from(*b)) ^ (crc >> 8);
     }
     !crc
 }
@@ -75,7 +119,7 @@ pub fn checksum(bytes: &[u8]) -> u32 {
 mod tests {
     extern crate std;
 
-    use super::checksum;
+    use super::{checksum, checksum_then_mask, unmask_then_checksum};
     use proptest::prelude::*;
     use std::vec::Vec;
 
@@ -95,6 +139,29 @@ mod tests {
             let bytes: Vec<u8> = bytes;
             let bytes = bytes.get(skip.min(bytes.len())..).unwrap_or_default();
             prop_assert_eq!(checksum(bytes), REFERENCE.checksum(bytes));
+        }
+
+        /// Masking in the CRC's pass gives the CRC of the bytes as they were,
+        /// each byte XORed with the mask's byte at its place, and whether a
+        /// masked byte is zero; unmasking gives both back.
+        #[test]
+        fn masking_in_the_same_pass_changes_nothing_else(
+            bytes in proptest::collection::vec(any::<u8>(), 0..300),
+            skip in 0usize..4,
+            mask in any::<u32>(),
+        ) {
+            let mut bytes: Vec<u8> = bytes;
+            let skip = skip.min(bytes.len());
+            let bytes = &mut bytes[skip..];
+            let original = bytes.to_vec();
+            let masked: Vec<u8> =
+                original.iter().enumerate().map(|(i, b)| b ^ mask.to_le_bytes()[i % 4]).collect();
+            let (crc, zeros) = checksum_then_mask(bytes, mask);
+            prop_assert_eq!(crc, REFERENCE.checksum(&original));
+            prop_assert_eq!(&bytes[..], &masked[..]);
+            prop_assert_eq!(zeros, masked.contains(&0));
+            prop_assert_eq!(unmask_then_checksum(bytes, mask), REFERENCE.checksum(&original));
+            prop_assert_eq!(&bytes[..], &original[..]);
         }
     }
 }

@@ -655,11 +655,17 @@ fn a_batch_whose_count_disagrees_with_its_messages_is_refused() {
     );
 }
 
-/// A frame's payload (COBS input) built by hand: `body ++ trailer ++ crc`.
+/// A frame built by hand: `body ++ trailer ++ crc`, each byte `i` of that
+/// XORed with byte `i % 4` of the protocol's mask (little-endian), stuffed
+/// by the `cobs` crate's rules and delimited.
 fn payload_frame(body: &[u8], trailer: &[u8]) -> Vec<u8> {
     let mut payload = [body, trailer].concat();
     let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI).checksum(&payload);
     payload.extend_from_slice(&crc.to_le_bytes());
+    let mask = link_proto::frame::MASK.to_le_bytes();
+    for (i, b) in payload.iter_mut().enumerate() {
+        *b ^= mask[i % 4];
+    }
     let mut out = vec![0u8];
     let mut cobs = vec![0u8; payload.len() + payload.len() / 254 + 2];
     let n = link_proto::cobs::encode(&payload, &mut cobs).unwrap();

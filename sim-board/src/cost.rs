@@ -65,15 +65,15 @@ impl Default for CostModel {
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (eight frames on a board): one end of a hop (the ray in
     /// its compact wire form, packed from where the node keeps it, the reply carrying the ray's ack, the reply's
-    /// ack alone every eighth reply) 1 414.2, and of a ray reply with its ack
-    /// alone every eighth time 490.4, which stands for every short message; a
-    /// ray end is charged the difference, 924 (the UART's bytes are the link
+    /// ack alone every eighth reply) 1 321.3, and of a ray reply with its ack
+    /// alone every eighth time 471.8, which stands for every short message; a
+    /// ray end is charged the difference, 850 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every eighth ray) 967.8; of one in a batch of four in one frame
-    /// 829.8. The rays are half primaries from the eye,
+    /// every eighth ray) 893.8; of one in a batch of four in one frame
+    /// 758.7. The rays are half primaries from the eye,
     /// half reflections from inside the grid with half their pixel's credit
     /// (39.0 bytes a frame). A node's end of a retirement (the host's acks
-    /// taken) 1 077.6 with one record, 3 277.1 with six: 440 a further record.
+    /// taken) 1 048.4 with one record, 3 186.2 with six: 428 a further record.
     fn default() -> Self {
         Self {
             cube_step: 109,
@@ -84,12 +84,12 @@ impl Default for CostModel {
             trace: 278,
             shade: 6_997,
             create: 2_785,
-            ray_message: 924,
-            granted_ray: 968,
-            batched_ray: 830,
-            short_message: 490,
-            retire_message: 1_078,
-            retire_record: 440,
+            ray_message: 850,
+            granted_ray: 894,
+            batched_ray: 759,
+            short_message: 472,
+            retire_message: 1_048,
+            retire_record: 428,
             pass: 0,
         }
     }

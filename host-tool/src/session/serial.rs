@@ -99,8 +99,19 @@ impl SerialArray {
         while self.links.iter().any(|l| l.hello.is_none()) {
             if Instant::now() > deadline {
                 let silent = self.links.iter().position(|l| l.hello.is_none()).unwrap_or(0);
+                let damaged = self.links[silent].channel.stats.corrupted;
+                // Frames of another protocol's framing fail the check before
+                // any hello could say which version the board speaks.
+                let why = if damaged > 0 {
+                    format!(
+                        "; {damaged} frames from it failed their check: flash it with this version's firmware (protocol {})",
+                        link_proto::PROTOCOL_VERSION
+                    )
+                } else {
+                    String::new()
+                };
                 return Err(HostError::Node(format!(
-                    "{} on {} did not say hello within {:.0?}",
+                    "{} on {} did not say hello within {:.0?}{why}",
                     self.name(silent),
                     self.links[silent].name,
                     self.timeout
