@@ -57,11 +57,11 @@ impl Default for CostModel {
     /// look that finds the end too far 101.0; a sphere test over a
     /// mostly-missing list 211.0, and one that meets its sphere ahead 1 525.7
     /// (the root and the depth: 1 307 more); a walk's
-    /// set-up (the received ray's line checked, the walk resumed) 277.7; a
-    /// shaded hit with one light and a mirror 6 997.4 (the surface and both
+    /// set-up (the received ray's line checked, the walk resumed) 279.7; a
+    /// shaded hit with one light and a mirror 7 048.4 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for
     /// the children it spawns later); an initial ray (pixel line, ray, entry
-    /// cube) 2 784.6. Messages through a reliable channel, whose
+    /// cube) 2 802.7. Messages through a reliable channel, whose
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (eight frames on a board): one end of a hop (the ray in
     /// its compact wire form, packed from where the node keeps it, the reply carrying the ray's ack, the reply's
@@ -81,9 +81,9 @@ impl Default for CostModel {
             clear_look: 101,
             sphere_test: 213,
             sphere_hit: 1_307,
-            trace: 278,
-            shade: 6_997,
-            create: 2_785,
+            trace: 280,
+            shade: 7_048,
+            create: 2_803,
             ray_message: 850,
             granted_ray: 894,
             batched_ray: 759,
