@@ -73,7 +73,7 @@ impl Default for CostModel {
     /// 758.7. The rays are half primaries from the eye,
     /// half reflections from inside the grid with half their pixel's credit
     /// (39.0 bytes a frame). A node's end of a retirement (the host's acks
-    /// taken) 1 048.4 with one record, 3 186.2 with six: 428 a further record.
+    /// taken) 1 042.1 with one record, 3 151.1 with six: 422 a further record.
     fn default() -> Self {
         Self {
             cube_step: 109,
@@ -88,8 +88,8 @@ impl Default for CostModel {
             granted_ray: 894,
             batched_ray: 759,
             short_message: 472,
-            retire_message: 1_048,
-            retire_record: 428,
+            retire_message: 1_042,
+            retire_record: 422,
             pass: 0,
         }
     }
