@@ -169,11 +169,11 @@ impl LinkPreset {
     /// array rendering the quick start's frame (64x64, 60 spheres, seed 3,
     /// grid 16^3, static): the busiest node's emulated running time less
     /// what the in-memory board charges it, over its polls that did work,
-    /// gives 39 700 instructions (three QEMU runs, median); the 24x24 frame
-    /// of `tests/tests/emulated.rs` gives 21 200 (five runs). One figure fits
-    /// both only so far: the preset takes 24 000, which charges the test
-    /// frame's busiest node 6.7% too much and the quick start's 26.6% too
-    /// little (docs/links.md). A poll's pass grew with the pieces of work a
+    /// gives 35 600 instructions (three QEMU runs, median); the 24x24 frame
+    /// of `tests/tests/emulated.rs` gives 18 300 (five runs). One figure fits
+    /// both only so far: the preset takes 21 000, which charges the test
+    /// frame's busiest node 7.6% too much and the quick start's 26.0% too
+    /// little (docs/links.md; measured at commit cf232d9, frames masked). A poll's pass grew with the pieces of work a
     /// poll does ([`node_fw::node::PIECES_PER_POLL`]; one piece a poll fitted
     /// 9 390 and 6 195): the pass moves every byte those pieces send through a
     /// UART register, so it is more a cost a message than a cost a poll,
@@ -186,7 +186,7 @@ impl LinkPreset {
     /// by interrupt or DMA, whose pass is not measured yet: none is charged.
     pub const fn loop_pass(self) -> u64 {
         match self {
-            LinkPreset::Emulated => 24_000,
+            LinkPreset::Emulated => 21_000,
             LinkPreset::F413 | LinkPreset::Ideal => 0,
         }
     }
