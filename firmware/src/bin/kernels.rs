@@ -512,7 +512,9 @@ fn retirements(timer: &mut Timer, rays: &[RayMsg], per: usize) -> (u64, u64) {
 
 /// Where one end of a hop goes, each part of a ray's frame apart: encoding
 /// it whole (postcard, CRC and COBS), decoding it whole, the CRC alone, COBS
-/// alone both ways, and the frame's length. Per ray; not charged by the cost
+/// alone both ways, and the frame's length. The parts are the plain CRC and
+/// COBS's general pass over the masked payload: a frame is masked in the
+/// CRC's pass, and only one left with a zero pays the general pass. Per ray; not charged by the cost
 /// model (its `ray_message` is the hop's end as a whole), printed to show
 /// what a cheaper transport must cut.
 fn frame_parts(timer: &mut Timer, rays: &[RayMsg]) -> [(&'static str, u64, u64); 6] {
