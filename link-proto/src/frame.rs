@@ -498,8 +498,8 @@ fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<(Batch, Batch),
         [seq, tag @ (RAY_TAG | GRANTED_RAY_TAG), len @ 0..0x80, rest @ ..] => {
             let (bytes, trailer) = rest.split_at_checked(usize::from(*len)).ok_or(DecodeError::Body)?;
             let ack = decode_trailer(trailer)?;
-            let ray = ray_wire::decode_ray(bytes).ok_or(DecodeError::Body)?;
-            out.msg = if *tag == RAY_TAG { Message::Ray(ray) } else { Message::GrantedRay(ray) };
+            ray_wire::decode_ray_into(bytes, *tag == GRANTED_RAY_TAG, &mut out.msg)
+                .ok_or(DecodeError::Body)?;
             (out.seq, out.ack) = (*seq, ack);
             Ok((Batch::NONE, Batch::NONE))
         }
@@ -587,8 +587,7 @@ fn decode_message(bytes: &[u8], out: &mut Message, left: u8) -> Result<u8, Decod
     if let [tag @ (RAY_TAG | GRANTED_RAY_TAG), len @ 0..0x80, tail @ ..] = bytes {
         let (ray, after) = tail.split_at_checked(usize::from(*len)).ok_or(DecodeError::Body)?;
         let n = rest(after)?;
-        let ray = ray_wire::decode_ray(ray).ok_or(DecodeError::Body)?;
-        *out = if *tag == RAY_TAG { Message::Ray(ray) } else { Message::GrantedRay(ray) };
+        ray_wire::decode_ray_into(ray, *tag == GRANTED_RAY_TAG, out).ok_or(DecodeError::Body)?;
         return Ok(n);
     }
     let (msg, after) = postcard::take_from_bytes::<Message>(bytes).map_err(|_| DecodeError::Body)?;

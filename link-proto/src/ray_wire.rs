@@ -274,6 +274,26 @@ fn put_sphere(w: &mut Writer<'_>, s: &SphereMsg) -> Option<()> {
 /// fraction of choosing the flags again and comparing them.
 #[inline(always)]
 pub fn decode_ray(bytes: &[u8]) -> Option<RayMsg> {
+    read_ray(bytes, |ray| ray)
+}
+
+/// [`decode_ray`] as the message of a ray's frame, on a grant or not,
+/// written into `out` (untouched unless the bytes are a ray). Each variant
+/// is built where it goes: a ray unpacked and then moved into the message
+/// cost each received frame a copy of its 120 bytes.
+#[inline(always)]
+pub fn decode_ray_into(bytes: &[u8], granted: bool, out: &mut Message) -> Option<()> {
+    if granted {
+        read_ray(bytes, |ray| *out = Message::GrantedRay(ray))
+    } else {
+        read_ray(bytes, |ray| *out = Message::Ray(ray))
+    }
+}
+
+/// Unpacks a ray as [`decode_ray`] says and hands it to `finish` once every
+/// field is read and checked.
+#[inline(always)]
+fn read_ray<T>(bytes: &[u8], finish: impl FnOnce(RayMsg) -> T) -> Option<T> {
     let mut r = Reader { bytes };
     let flags = r.u8()?;
     let forms = r.u8()?;
@@ -312,7 +332,21 @@ pub fn decode_ray(bytes: &[u8]) -> Option<RayMsg> {
     if !r.bytes.is_empty() {
         return None;
     }
-    Some(RayMsg { origin, dir, cell, pixel, weight, credit, kind, depth, ignore, best, t_max, class, tag })
+    Some(finish(RayMsg {
+        origin,
+        dir,
+        cell,
+        pixel,
+        weight,
+        credit,
+        kind,
+        depth,
+        ignore,
+        best,
+        t_max,
+        class,
+        tag,
+    }))
 }
 
 fn take_sphere(r: &mut Reader<'_>) -> Option<SphereMsg> {
@@ -698,6 +732,20 @@ mod tests {
             65000u32..70_000,
             proptest::num::u32::ANY
         ]
+    }
+
+    #[test]
+    fn a_ray_unpacked_into_its_message_is_the_ray_and_a_bad_one_leaves_it_be() {
+        let mut buf = [0u8; RAY_MAX_LEN];
+        let n = encode_ray(&ray(), &mut buf).unwrap();
+        let mut out = Message::Space;
+        assert_eq!(decode_ray_into(&buf[..n], true, &mut out), Some(()));
+        assert_eq!(out, Message::GrantedRay(ray()));
+        assert_eq!(decode_ray_into(&buf[..n], false, &mut out), Some(()));
+        assert_eq!(out, Message::Ray(ray()));
+        // Cut short: refused, and the message is what it was.
+        assert_eq!(decode_ray_into(&buf[..n - 1], true, &mut out), None);
+        assert_eq!(out, Message::Ray(ray()));
     }
 
     #[test]
