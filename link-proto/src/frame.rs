@@ -188,6 +188,11 @@ fn seal(out: &mut [u8], body_len: usize) -> Result<usize, EncodeError> {
 /// CRC's own pass over the bytes, at both ends, so a frame with nothing to
 /// stuff costs its stuffing one code byte. On a Cortex-M3 this took a
 /// granted hop's end from 968 to 894 instructions.
+///
+/// Each of its bytes is the one least often found at its place (modulo 4)
+/// among the 2.4e6 body bytes of the paper's frame on 4x8x2 (1000 spheres,
+/// seed 1986); one frame in ten is left with a zero. Fields' low bytes are
+/// near uniform, so no mask does much better.
 pub const MASK: u32 = 0x7B4A_504D;
 
 /// The mask of the CRC's four bytes after `body_len` bytes of body.
