@@ -83,6 +83,16 @@ impl Form {
         }
     }
 
+    /// How many bytes the form `code` names takes (as [`Form::read`] reads it).
+    pub(crate) fn wire_len(code: u8) -> usize {
+        match code {
+            0 => 0,
+            1 => 4,
+            2 => 8,
+            _ => 1,
+        }
+    }
+
     /// Reads a credit written in the form `code` names; `None` for bytes
     /// that are not the encoder's choice (each credit has one encoding).
     pub(crate) fn read(code: u8, r: &mut Reader<'_>) -> Option<u64> {

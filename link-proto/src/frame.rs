@@ -285,18 +285,18 @@ pub fn encode_outgoing_ray(ray: &OutgoingRay<'_>, out: &mut [u8]) -> Result<usiz
 }
 
 /// A ray's message as it follows the sequence number, as postcard writes it
-/// (the variant's index, the ray's wire form as a byte string: its length in
-/// one varint byte, as `RAY_MAX_LEN < 128`) but with the ray packed straight
-/// into place. Through serde the ray was packed into a zeroed scratch buffer
-/// and copied, and the variant dispatched: a tenth of a hop's instructions
-/// at each end, for the message that is most of the traffic.
+/// (the variant's index, then the ray's wire form, whose flags say how long
+/// it is) but with the ray packed straight into place. Through serde the
+/// ray was packed into a zeroed scratch buffer and copied, and the variant
+/// dispatched: a tenth of a hop's instructions at each end, for the message
+/// that is most of the traffic.
 #[inline(always)]
 fn encode_ray_message(ray: &OutgoingRay<'_>, out: &mut [u8]) -> Result<usize, EncodeError> {
     let tag = if ray.granted { GRANTED_RAY_TAG } else { RAY_TAG };
-    let (head, bytes) = out.split_at_mut_checked(2).ok_or(EncodeError::BufferTooSmall)?;
+    let (head, bytes) = out.split_first_mut().ok_or(EncodeError::BufferTooSmall)?;
     let n = ray_wire::encode_outgoing(ray, bytes).ok_or(EncodeError::BufferTooSmall)?;
-    head.copy_from_slice(&[tag, n as u8]);
-    Ok(2 + n)
+    *head = tag;
+    Ok(1 + n)
 }
 
 /// Incremental frame decoder with a fixed buffer.
@@ -500,12 +500,11 @@ fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<(Batch, Batch),
     match &*body {
         // A ray, read as `encode_ray_message` writes it: no serde dispatch,
         // and written straight into `out`.
-        [seq, tag @ (RAY_TAG | GRANTED_RAY_TAG), len @ 0..0x80, rest @ ..] => {
-            let (bytes, trailer) = rest.split_at_checked(usize::from(*len)).ok_or(DecodeError::Body)?;
-            let ack = decode_trailer(trailer)?;
-            ray_wire::decode_ray_into(bytes, *tag == GRANTED_RAY_TAG, &mut out.msg)
-                .ok_or(DecodeError::Body)?;
-            (out.seq, out.ack) = (*seq, ack);
+        [seq, tag @ (RAY_TAG | GRANTED_RAY_TAG), rest @ ..] => {
+            let ack = ray_wire::decode_ray_into(rest, *tag == GRANTED_RAY_TAG, &mut out.msg, |trailer| {
+                decode_trailer(trailer).ok()
+            });
+            (out.seq, out.ack) = (*seq, ack.ok_or(DecodeError::Body)?);
             Ok((Batch::NONE, Batch::NONE))
         }
         [seq, BATCH_TAG, head, rest @ ..] => {
@@ -589,11 +588,9 @@ fn decode_message(bytes: &[u8], out: &mut Message, left: u8) -> Result<u8, Decod
         // Within a buffer of at most 255 bytes.
         (_, n) => u8::try_from(n).map_err(|_| DecodeError::Body),
     };
-    if let [tag @ (RAY_TAG | GRANTED_RAY_TAG), len @ 0..0x80, tail @ ..] = bytes {
-        let (ray, after) = tail.split_at_checked(usize::from(*len)).ok_or(DecodeError::Body)?;
-        let n = rest(after)?;
-        ray_wire::decode_ray_into(ray, *tag == GRANTED_RAY_TAG, out).ok_or(DecodeError::Body)?;
-        return Ok(n);
+    if let [tag @ (RAY_TAG | GRANTED_RAY_TAG), tail @ ..] = bytes {
+        let n = ray_wire::decode_ray_into(tail, *tag == GRANTED_RAY_TAG, out, |after| rest(after).ok());
+        return n.ok_or(DecodeError::Body);
     }
     let (msg, after) = postcard::take_from_bytes::<Message>(bytes).map_err(|_| DecodeError::Body)?;
     let n = rest(after)?;

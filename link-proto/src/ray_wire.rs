@@ -274,26 +274,34 @@ fn put_sphere(w: &mut Writer<'_>, s: &SphereMsg) -> Option<()> {
 /// fraction of choosing the flags again and comparing them.
 #[inline(always)]
 pub fn decode_ray(bytes: &[u8]) -> Option<RayMsg> {
-    read_ray(bytes, |ray| ray)
+    read_ray(bytes, |ray, rest| rest.is_empty().then_some(ray))
 }
 
-/// [`decode_ray`] as the message of a ray's frame, on a grant or not,
-/// written into `out` (untouched unless the bytes are a ray). Each variant
-/// is built where it goes: a ray unpacked and then moved into the message
-/// cost each received frame a copy of its 120 bytes.
+/// The ray at the start of `bytes` as the message of a ray's frame, on a
+/// grant or not, written into `out` if `after` takes the bytes that follow
+/// it (a frame gives a ray no length: its flags say how long it is); what
+/// `after` made of them. `out` is untouched unless both are good. Each
+/// variant is built where it goes: a ray unpacked and then moved into the
+/// message cost each received frame a copy of its 120 bytes.
 #[inline(always)]
-pub fn decode_ray_into(bytes: &[u8], granted: bool, out: &mut Message) -> Option<()> {
-    if granted {
-        read_ray(bytes, |ray| *out = Message::GrantedRay(ray))
-    } else {
-        read_ray(bytes, |ray| *out = Message::Ray(ray))
-    }
+pub fn decode_ray_into<T>(
+    bytes: &[u8],
+    granted: bool,
+    out: &mut Message,
+    after: impl FnOnce(&[u8]) -> Option<T>,
+) -> Option<T> {
+    read_ray(bytes, |ray, rest| {
+        let made = after(rest)?;
+        *out = if granted { Message::GrantedRay(ray) } else { Message::Ray(ray) };
+        Some(made)
+    })
 }
 
-/// Unpacks a ray as [`decode_ray`] says and hands it to `finish` once every
-/// field is read and checked.
+/// Unpacks the ray at the start of `bytes` as [`decode_ray`] says and hands
+/// it to `finish`, with the bytes after it, once every field is read and
+/// checked.
 #[inline(always)]
-fn read_ray<T>(bytes: &[u8], finish: impl FnOnce(RayMsg) -> T) -> Option<T> {
+fn read_ray<T>(bytes: &[u8], finish: impl FnOnce(RayMsg, &[u8]) -> Option<T>) -> Option<T> {
     let mut r = Reader { bytes };
     let flags = r.u8()?;
     let forms = r.u8()?;
@@ -329,24 +337,10 @@ fn read_ray<T>(bytes: &[u8], finish: impl FnOnce(RayMsg) -> T) -> Option<T> {
     let t_max = if flags & HAS_T_MAX != 0 { Some(r.i32()?) } else { None };
     let best =
         if flags & HAS_BEST != 0 { Some(HitMsg { t: r.i32()?, sphere: take_sphere(&mut r)? }) } else { None };
-    if !r.bytes.is_empty() {
-        return None;
-    }
-    Some(finish(RayMsg {
-        origin,
-        dir,
-        cell,
-        pixel,
-        weight,
-        credit,
-        kind,
-        depth,
-        ignore,
-        best,
-        t_max,
-        class,
-        tag,
-    }))
+    finish(
+        RayMsg { origin, dir, cell, pixel, weight, credit, kind, depth, ignore, best, t_max, class, tag },
+        r.bytes,
+    )
 }
 
 fn take_sphere(r: &mut Reader<'_>) -> Option<SphereMsg> {
@@ -360,33 +354,86 @@ fn take_sphere(r: &mut Reader<'_>) -> Option<SphereMsg> {
     Some(SphereMsg { id, center, radius, material })
 }
 
+/// How long the ray whose flag bytes are `flags` and `forms` is on the
+/// wire, all of it: what a reader that cannot see the whole frame (serde's)
+/// must take. Flags no encoder writes give some length; the ray's decoder
+/// refuses them.
+fn wire_len(flags: u8, forms: u8) -> usize {
+    let has = |bit: u8, len: usize| if flags & bit != 0 { len } else { 0 };
+    let depth = usize::from(forms >> DEPTH_SHIFT == DEPTH_ESCAPE);
+    let origin = match (flags & AT_EYE != 0, forms & SHORT_ORIGIN != 0) {
+        (_, true) => 9,
+        (true, false) => 0,
+        (false, false) => 12,
+    };
+    let cell_pixel = if forms & WIDE != 0 { 6 + 4 } else { 3 + 3 };
+    let weights = match forms & WEIGHTS_MASK {
+        WEIGHTS_SHORT => 6,
+        WEIGHTS_LONG => 12,
+        _ => 0,
+    };
+    let credit = credit::Form::wire_len((forms & CREDIT_MASK) >> CREDIT_SHIFT);
+    let class = if flags & WIDE_CLASS != 0 { 2 } else { 1 };
+    2 + depth
+        + origin
+        + 12
+        + cell_pixel
+        + weights
+        + credit
+        + class
+        + has(HAS_TAG, 2)
+        + has(HAS_IGNORE, 2)
+        + has(HAS_T_MAX, 4)
+        + has(HAS_BEST, 4 + SPHERE_LEN)
+}
+
+/// A ray is its wire form's bytes, one after another with no length before
+/// them (as a tuple, which postcard writes so): its flags say how many.
 impl Serialize for RayMsg {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeTuple;
         let mut buf = [0u8; RAY_MAX_LEN];
         let len = encode_ray(self, &mut buf).unwrap_or(0);
-        serializer.serialize_bytes(buf.get(..len).unwrap_or_default())
+        let mut tuple = serializer.serialize_tuple(len)?;
+        for byte in buf.get(..len).unwrap_or_default() {
+            tuple.serialize_element(byte)?;
+        }
+        tuple.end()
     }
 }
 
 impl<'de> Deserialize<'de> for RayMsg {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         struct RayBytes;
-        impl Visitor<'_> for RayBytes {
+        impl<'de> Visitor<'de> for RayBytes {
             type Value = RayMsg;
             fn expecting(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
                 f.write_str("a ray's wire form")
             }
-            fn visit_bytes<E: serde::de::Error>(self, bytes: &[u8]) -> Result<RayMsg, E> {
-                decode_ray(bytes).ok_or_else(|| E::custom("not a ray"))
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<RayMsg, A::Error> {
+                let mut buf = [0u8; RAY_MAX_LEN];
+                let mut next =
+                    || seq.next_element::<u8>()?.ok_or_else(|| A::Error::custom("a ray cut short"));
+                let (flags, forms) = (next()?, next()?);
+                let len = wire_len(flags, forms);
+                let bytes = buf.get_mut(..len).ok_or_else(|| A::Error::custom("not a ray"))?;
+                for (i, byte) in bytes.iter_mut().enumerate() {
+                    *byte = match i {
+                        0 => flags,
+                        1 => forms,
+                        _ => next()?,
+                    };
+                }
+                decode_ray(bytes).ok_or_else(|| A::Error::custom("not a ray"))
             }
         }
-        deserializer.deserialize_bytes(RayBytes).map_err(D::Error::custom)
+        deserializer.deserialize_tuple(RAY_MAX_LEN, RayBytes)
     }
 }
 
 impl postcard::experimental::max_size::MaxSize for RayMsg {
-    // The byte string's length (one varint byte: RAY_MAX_LEN < 128) and its bytes.
-    const POSTCARD_MAX_SIZE: usize = 1 + RAY_MAX_LEN;
+    // Its bytes, with no length before them.
+    const POSTCARD_MAX_SIZE: usize = RAY_MAX_LEN;
 }
 
 const _: () = assert!(RAY_MAX_LEN < 128);
@@ -570,6 +617,24 @@ mod tests {
             let mut buf = [0u8; RAY_MAX_LEN];
             let n = encode_ray(&r, &mut buf).unwrap();
             proptest::prop_assert_eq!(decode_ray(&buf[..n]), Some(r));
+            proptest::prop_assert_eq!(wire_len(buf[0], buf[1]), n);
+        }
+
+        /// Through serde (postcard), a ray is its bytes with no length
+        /// before them, and reads back from them whatever follows.
+        #[test]
+        fn rays_go_through_postcard_as_their_bare_bytes(r in arb_ray(), tail in proptest::num::u8::ANY) {
+            let mut buf = [0u8; RAY_MAX_LEN];
+            let n = encode_ray(&r, &mut buf).unwrap();
+            let mut out = [0u8; RAY_MAX_LEN + 8];
+            let through = postcard::to_slice(&r, &mut out).unwrap().to_vec();
+            proptest::prop_assert_eq!(&through[..], &buf[..n]);
+            let mut with_tail = through.clone();
+            with_tail.push(tail);
+            let (back, rest) = postcard::take_from_bytes::<RayMsg>(&with_tail).unwrap();
+            proptest::prop_assert_eq!(back, r);
+            proptest::prop_assert_eq!(rest, &[tail][..]);
+            proptest::prop_assert!(postcard::from_bytes::<RayMsg>(&through[..n - 1]).is_err());
         }
     }
 
@@ -738,13 +803,18 @@ mod tests {
     fn a_ray_unpacked_into_its_message_is_the_ray_and_a_bad_one_leaves_it_be() {
         let mut buf = [0u8; RAY_MAX_LEN];
         let n = encode_ray(&ray(), &mut buf).unwrap();
+        buf[n..n + 2].copy_from_slice(&[7, 9]);
         let mut out = Message::Space;
-        assert_eq!(decode_ray_into(&buf[..n], true, &mut out), Some(()));
+        let rest = |after: &[u8]| Some(after.to_vec());
+        assert_eq!(decode_ray_into(&buf[..n + 2], true, &mut out, rest), Some(vec![7, 9]));
         assert_eq!(out, Message::GrantedRay(ray()));
-        assert_eq!(decode_ray_into(&buf[..n], false, &mut out), Some(()));
+        assert_eq!(decode_ray_into(&buf[..n], false, &mut out, rest), Some(vec![]));
         assert_eq!(out, Message::Ray(ray()));
         // Cut short: refused, and the message is what it was.
-        assert_eq!(decode_ray_into(&buf[..n - 1], true, &mut out), None);
+        assert_eq!(decode_ray_into(&buf[..n - 1], true, &mut out, rest), None);
+        assert_eq!(out, Message::Ray(ray()));
+        // What follows refused: so is the ray.
+        assert_eq!(decode_ray_into(&buf[..n + 2], true, &mut out, |_| None::<()>), None);
         assert_eq!(out, Message::Ray(ray()));
     }
 

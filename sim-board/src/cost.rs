@@ -65,14 +65,14 @@ impl Default for CostModel {
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (eight frames on a board): one end of a hop (the ray in
     /// its compact wire form, packed from where the node keeps it, the reply carrying the ray's ack, the reply's
-    /// ack alone every eighth reply) 1 315.8, and of a ray reply with its ack
-    /// alone every eighth time 471.8, which stands for every short message; a
-    /// ray end is charged the difference, 844 (the UART's bytes are the link
+    /// ack alone every eighth reply) 1 294.6, and of a ray reply with its ack
+    /// alone every eighth time 473.6, which stands for every short message; a
+    /// ray end is charged the difference, 821 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every eighth ray) 887.3; of one in a batch of four in one frame
-    /// 755.9. The rays are half primaries from the eye,
+    /// every eighth ray) 876.7; of one in a batch of four in one frame
+    /// 732.7. The rays are half primaries from the eye,
     /// half reflections from inside the grid with half their pixel's credit
-    /// (39.0 bytes a frame). A node's end of a retirement (the host's acks
+    /// (38.0 bytes a frame). A node's end of a retirement (the host's acks
     /// taken) 1 041.2 with one record, 3 150.0 with six: 422 a further record.
     fn default() -> Self {
         Self {
@@ -84,10 +84,10 @@ impl Default for CostModel {
             trace: 280,
             shade: 7_048,
             create: 2_803,
-            ray_message: 844,
-            granted_ray: 887,
-            batched_ray: 756,
-            short_message: 472,
+            ray_message: 821,
+            granted_ray: 877,
+            batched_ray: 733,
+            short_message: 474,
             retire_message: 1_041,
             retire_record: 422,
             pass: 0,
