@@ -10,10 +10,18 @@
 //!
 //! One producer and one consumer (the handler and the loop, one way or the
 //! other): each index is written by one side only, and a byte is published
-//! by the release store of `head` after it is written, so no lock is needed.
+//! by the store of `head` after it is written, so no lock is needed.
+//!
+//! Both sides run on one core, the handler interrupting the loop: a core
+//! sees its own loads and stores in program order, so only the compiler
+//! must be kept from reordering them, which [`compiler_fence`] does (its
+//! documented use: a thread and the interrupt or signal handler that runs
+//! on it). Acquire and release atomics would each add a `dmb` on a
+//! Cortex-M, two to every byte the handler moves, for an order the core
+//! keeps anyway.
 
 use core::cell::UnsafeCell;
-use core::sync::atomic::{AtomicU16, AtomicU32, Ordering};
+use core::sync::atomic::{AtomicU16, AtomicU32, Ordering, compiler_fence};
 
 /// A single-producer, single-consumer ring of `N` bytes (a power of two).
 pub struct ByteRing<const N: usize> {
@@ -28,9 +36,11 @@ pub struct ByteRing<const N: usize> {
 }
 
 // SAFETY: the producer writes only the slot at `head` and then `head`; the
-// consumer reads only slots before `head` (acquired) and writes only
-// `tail`. A slot is never written while the consumer may read it, because
-// the producer does not pass `tail + N`.
+// consumer reads only slots before `head` (read before the slots, in
+// program order) and writes only `tail`. A slot is never written while the
+// consumer may read it, because the producer does not pass `tail + N`. Both
+// run on one core (see the module's note), so program order is the order
+// each sees the other's accesses in.
 unsafe impl<const N: usize> Sync for ByteRing<N> {}
 
 impl<const N: usize> ByteRing<N> {
@@ -51,7 +61,9 @@ impl<const N: usize> ByteRing<N> {
     /// ring is full.
     pub fn push(&self, byte: u8) -> bool {
         let head = self.head.load(Ordering::Relaxed);
-        let tail = self.tail.load(Ordering::Acquire);
+        let tail = self.tail.load(Ordering::Relaxed);
+        // The slot is free once `tail` says so: read it before writing there.
+        compiler_fence(Ordering::Acquire);
         if usize::from(head.wrapping_sub(tail)) >= N {
             return false;
         }
@@ -60,7 +72,9 @@ impl<const N: usize> ByteRing<N> {
         // impl). Only this byte is written: no reference to the array is
         // made while the consumer may be reading other slots.
         unsafe { self.bytes.get().cast::<u8>().add(usize::from(head) % N).write(byte) };
-        self.head.store(head.wrapping_add(1), Ordering::Release);
+        // The byte before the index that publishes it.
+        compiler_fence(Ordering::Release);
+        self.head.store(head.wrapping_add(1), Ordering::Relaxed);
         true
     }
 
@@ -73,26 +87,31 @@ impl<const N: usize> ByteRing<N> {
     /// Consumer side: the oldest byte, if any.
     pub fn pop(&self) -> Option<u8> {
         let tail = self.tail.load(Ordering::Relaxed);
-        if self.head.load(Ordering::Acquire) == tail {
+        let head = self.head.load(Ordering::Relaxed);
+        // The index that published the byte before the byte.
+        compiler_fence(Ordering::Acquire);
+        if head == tail {
             return None;
         }
         // SAFETY: the slot is inside the array (`% N`); it was published by
-        // the producer's release store of `head`, acquired above, and it is
-        // not rewritten until `tail` moves past it below.
+        // the producer's store of `head`, read above, and it is not
+        // rewritten until `tail` moves past it below.
         let byte = unsafe { self.bytes.get().cast::<u8>().add(usize::from(tail) % N).read() };
-        self.tail.store(tail.wrapping_add(1), Ordering::Release);
+        // The byte read before the slot is handed back.
+        compiler_fence(Ordering::Release);
+        self.tail.store(tail.wrapping_add(1), Ordering::Relaxed);
         Some(byte)
     }
 
     /// Whether no byte waits (either side may ask).
     pub fn is_empty(&self) -> bool {
-        self.head.load(Ordering::Acquire) == self.tail.load(Ordering::Acquire)
+        self.head.load(Ordering::Relaxed) == self.tail.load(Ordering::Relaxed)
     }
 
     /// Producer side: whether a push would fail.
     pub fn is_full(&self) -> bool {
         let head = self.head.load(Ordering::Relaxed);
-        usize::from(head.wrapping_sub(self.tail.load(Ordering::Acquire))) >= N
+        usize::from(head.wrapping_sub(self.tail.load(Ordering::Relaxed))) >= N
     }
 
     /// Received bytes lost so far.

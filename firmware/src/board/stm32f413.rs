@@ -28,6 +28,7 @@
 //! [`clock_tree`] computes them (and its tests decode them field by field).
 
 use core::convert::Infallible;
+use core::sync::atomic::{AtomicBool, Ordering};
 
 use clock_tree::nucleo_f413zh::{
     FROM_HSE, FROM_HSI, HOST_APB1, HOST_BAUD, NEIGHBOUR_APB1, NEIGHBOUR_APB2, NEIGHBOUR_BAUD,
@@ -158,11 +159,17 @@ struct Rings {
     rx: ByteRing<RING>,
     /// To send: the loop pushes, the handler pops.
     tx: ByteRing<RING>,
+    /// Whether the transmit interrupt is on, as CR1's TXEIE says: a flag in
+    /// memory, so that a received byte's interrupt reads no register to
+    /// learn that there is nothing to send. Written only where TXEIE is,
+    /// with it (inside a critical section, or by the handler).
+    sending: AtomicBool,
 }
 
 /// Each UART's rings, in the order of [`IRQS`]: the host's, then +X, -X,
 /// +Y, -Y, +Z, -Z.
-static RINGS: [Rings; 7] = [const { Rings { rx: ByteRing::new(), tx: ByteRing::new() } }; 7];
+static RINGS: [Rings; 7] =
+    [const { Rings { rx: ByteRing::new(), tx: ByteRing::new(), sending: AtomicBool::new(false) } }; 7];
 
 /// A U(S)ART driven by its interrupt: the handler moves received bytes into
 /// one ring and bytes to send out of another (see [`super::byte_ring`]).
@@ -195,46 +202,59 @@ impl Uart {
     }
 }
 
-/// A UART's interrupt: every byte it holds into the receive ring, and
-/// bytes from the transmit ring while it takes them. The transmit side only
-/// while its interrupt is on (the loop turns it on with every byte it
-/// queues): a received byte's interrupt then costs one read of CR1, where
-/// going through `transmit` read SR again and rewrote CR1 each time.
+/// A UART's interrupt, one byte each way at most: the byte received, and
+/// the next byte to send while the transmit interrupt is on. Every byte a
+/// link moves costs one of these, so it is kept short (the CPU cycles a
+/// byte of `sim_board::link_spec::Transfer::Interrupt` count its path):
+/// - one read of SR for both directions;
+/// - no second look for another byte: the UART holds one each way, and a
+///   flag still set raises the interrupt again at once (tail-chained);
+/// - whether to send is a flag in memory ([`Rings::sending`]), not a read
+///   of CR1;
+/// - inlined into each UART's handler, so its registers' address is a
+///   constant and the block's kind is known.
+///
+/// Reading SR then DR takes the byte and clears an overrun; an overrun
+/// means a byte was lost before this ran.
+#[inline(always)]
 fn service(regs: Regs, rings: &Rings) {
-    receive(regs, &rings.rx);
-    if with_regs!(regs, r => r.cr1().read().txeie().bit_is_set()) {
-        transmit(regs, &rings.tx);
+    let (received, overrun, empty) = with_regs!(regs, r => {
+        let sr = r.sr().read();
+        (sr.rxne().bit_is_set(), sr.ore().bit_is_set(), sr.txe().bit_is_set())
+    });
+    if received {
+        if overrun {
+            rings.rx.note_lost();
+        }
+        if !rings.rx.push(with_regs!(regs, r => r.dr().read().dr().bits()) as u8) {
+            rings.rx.note_lost();
+        }
+    }
+    if empty && rings.sending.load(Ordering::Relaxed) {
+        match rings.tx.pop() {
+            Some(byte) => {
+                with_regs!(regs, r => r.dr().write(|w| w.dr().set(u16::from(byte))));
+            }
+            None => stop_sending(regs, rings),
+        }
     }
 }
 
-/// Reading SR then DR takes the byte and clears an overrun; an overrun
-/// means a byte was lost before this ran.
-fn receive(regs: Regs, rx: &ByteRing<RING>) {
-    loop {
-        let (ready, overrun) = with_regs!(regs, r => {
-            let sr = r.sr().read();
-            (sr.rxne().bit_is_set(), sr.ore().bit_is_set())
-        });
-        if !ready {
-            return;
-        }
-        if overrun {
-            rx.note_lost();
-        }
-        if !rx.push(with_regs!(regs, r => r.dr().read().dr().bits()) as u8) {
-            rx.note_lost();
-        }
-    }
+/// Turns the transmit interrupt off (TXE stays set while the line is idle),
+/// with nothing left to send. No byte is stranded with it off: the loop
+/// turns it on again with every byte it queues ([`Uart::write`]).
+fn stop_sending(regs: Regs, rings: &Rings) {
+    with_regs!(regs, r => r.cr1().modify(|_, w| w.txeie().clear_bit()));
+    rings.sending.store(false, Ordering::Relaxed);
 }
 
 /// Writes while the UART takes bytes and any wait; with none left, turns
-/// the transmit interrupt off (TXE stays set while the line is idle). No
-/// byte is stranded with it off: the loop starts the transmitter itself
-/// after every byte it queues ([`Uart::write`]).
-fn transmit(regs: Regs, tx: &ByteRing<RING>) {
+/// the transmit interrupt off. The loop's start of the line, inside a
+/// critical section.
+fn transmit(regs: Regs, rings: &Rings) {
     while with_regs!(regs, r => r.sr().read().txe().bit_is_set()) {
-        let Some(byte) = tx.pop() else {
-            with_regs!(regs, r => r.cr1().modify(|_, w| w.txeie().clear_bit()));
+        let Some(byte) = rings.tx.pop() else {
+            stop_sending(regs, rings);
             return;
         };
         with_regs!(regs, r => r.dr().write(|w| w.dr().set(u16::from(byte))));
@@ -325,10 +345,11 @@ impl Write for Uart {
         // interrupt goes on while the loop is busy elsewhere. (QEMU 7.2's
         // USART model raises no transmit interrupt: there this start sends
         // everything, the model taking each byte at once.)
-        let (regs, tx) = (self.regs, &self.rings.tx);
+        let (regs, rings) = (self.regs, self.rings);
         cortex_m::interrupt::free(|_| {
             with_regs!(regs, r => r.cr1().modify(|_, w| w.txeie().set_bit()));
-            transmit(regs, tx);
+            rings.sending.store(true, Ordering::Relaxed);
+            transmit(regs, rings);
         });
         Ok(queued)
     }
