@@ -64,6 +64,20 @@ grep -q _SEGGER_RTT "$OUT/node-stm32f413.elf" && "$SIZE" -A "$OUT/node-stm32f413
     echo "error: the stm32f413 image has no defmt log over RTT" >&2
     exit 1
 }
+# The in-memory board's `f413` links charge each byte the path of a UART's
+# interrupt handler, counted in this image (sim-board/src/link_spec.rs:
+# 32 instructions for a byte received, 25 for one sent, of a handler of 51).
+# A handler that grows, or takes a barrier or a loop again, must be counted
+# afresh and the charge changed. (awk reads all of objdump's output: see nm's above.)
+OBJDUMP="$(dirname "$SIZE")/llvm-objdump"
+HANDLER=$("$OBJDUMP" -d --no-show-raw-insn "$OUT/node-stm32f413.elf" | awk '/<USART1>:/ { on = 1; next } /^$/ { on = 0 } on')
+HANDLER_LEN=$(echo "$HANDLER" | grep -c .)
+if [ "$HANDLER_LEN" -eq 0 ] || [ "$HANDLER_LEN" -gt 51 ] || echo "$HANDLER" | grep -qw dmb; then
+    echo "error: the stm32f413 USART1 handler has $HANDLER_LEN instructions (at most 51, no dmb):" \
+        "count its paths again and update Transfer::cycles_per_byte" >&2
+    exit 1
+fi
+echo "stm32f413 UART handler: $HANDLER_LEN instructions"
 
 echo "kernels on the emulated Cortex-M3 (instructions, timed loops included):"
 KERNELS=$(timeout 300 qemu-system-arm -machine mps2-an385 -cpu cortex-m3 -nographic -icount shift=0 \

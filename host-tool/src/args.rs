@@ -108,7 +108,7 @@ impl LinkArgs {
 pub enum TransferChoice {
     /// The main loop polls each UART (16 cycles a byte).
     Polled,
-    /// An interrupt per byte (70 cycles a byte).
+    /// An interrupt per byte (51 cycles a byte).
     Interrupt,
     /// DMA (no CPU cycles per byte).
     Dma,

@@ -32,12 +32,16 @@ impl Transfer {
     /// - Interrupt: 12 cycles to enter and 10 to leave a handler (Cortex-M3
     ///   and M4 without floating-point context, ARM's TRMs), and the STM32
     ///   firmware's handler, counted instruction by instruction on its path
-    ///   in the stm32f413 image's disassembly (`scripts/firmware.sh` builds
-    ///   it): 45 instructions for a byte received (the handler's entry, the
-    ///   status and data registers read, the byte into the ring, the status
-    ///   read again, the transmit interrupt found off) and 51 for a byte
-    ///   sent; 67 and 73 cycles with the exception, 70 at each end. A lower
-    ///   bound: the peripheral bus's wait states, and the loop's moving of
+    ///   in the stm32f413 image's disassembly (`llvm-objdump -d` of
+    ///   `target/firmware/node-stm32f413.elf` at `USART1`, which
+    ///   `scripts/firmware.sh` builds, and whose size it holds): 32
+    ///   instructions for a byte received (the handler's entry, the status
+    ///   register read once, the data register, the byte into the ring, the
+    ///   sending flag found clear; the two instructions an `it` skips
+    ///   counted) and 25 for a byte sent (the status register, the flag, the
+    ///   byte out of the ring and into the data register); 54 and 47 cycles
+    ///   with the exception, 51 at each end. A lower bound: the peripheral
+    ///   bus's wait states, a taken branch's refill, and the loop's moving of
     ///   each byte between ring and channel, are not counted.
     /// - Polled: the same register reads and ring update without the
     ///   exception: 16. (The loop must come round once per byte; a long walk
@@ -49,7 +53,7 @@ impl Transfer {
     pub const fn cycles_per_byte(self) -> u64 {
         match self {
             Transfer::Polled => 16,
-            Transfer::Interrupt => 70,
+            Transfer::Interrupt => 51,
             Transfer::Dma => 0,
         }
     }
