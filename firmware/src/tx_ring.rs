@@ -1,4 +1,4 @@
-//! Bytes waiting for a UART: whole frames in, single bytes out.
+//! Bytes waiting for a UART: whole frames in, runs of bytes out.
 
 use heapless::Deque;
 
@@ -30,16 +30,21 @@ impl TxRing {
         true
     }
 
-    /// The next byte to send, if any.
+    /// The oldest waiting bytes that lie one after another in the ring
+    /// (empty when none wait): a UART's writer takes such a run in one call
+    /// (on the STM32 boards, one critical section for all it queues), where
+    /// a call a byte paid that call's whole cost for every byte.
     #[inline]
-    pub fn front(&self) -> Option<u8> {
-        self.bytes.front().copied()
+    pub fn front_run(&self) -> &[u8] {
+        self.bytes.as_slices().0
     }
 
-    /// Drops the byte just sent.
+    /// Drops the `n` oldest bytes, just sent.
     #[inline]
-    pub fn pop(&mut self) {
-        self.bytes.pop_front();
+    pub fn consume(&mut self, n: usize) {
+        for _ in 0..n {
+            self.bytes.pop_front();
+        }
     }
 
     /// Whether nothing waits.

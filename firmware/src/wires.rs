@@ -123,17 +123,17 @@ fn drain<U: Read + ReadReady + LostBytes, const W: usize, const Q: usize>(
     read
 }
 
+/// Writes what the UART takes of `ring`, a run of bytes a call.
 fn fill<U: Write + WriteReady>(uart: &mut U, ring: &mut TxRing) -> usize {
     let mut written = 0;
-    while let Some(b) = ring.front() {
-        if !uart.write_ready().unwrap_or(false) {
-            break;
-        }
-        match uart.write(&[b]) {
-            Ok(1) => ring.pop(),
+    while !ring.is_empty() && uart.write_ready().unwrap_or(false) {
+        match uart.write(ring.front_run()) {
+            Ok(n) if n > 0 => {
+                ring.consume(n);
+                written += n;
+            }
             _ => break,
         }
-        written += 1;
     }
     written
 }
