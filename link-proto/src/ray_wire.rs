@@ -1,5 +1,6 @@
 //! A ray's wire form: fixed little-endian fields, packed and unpacked by
-//! hand, carried in a frame as one postcard byte string.
+//! hand, carried in a frame as its bare bytes (to postcard, a tuple of
+//! them): its flag bytes say how long it is, so it needs no length.
 //!
 //! Rays are most of the traffic between nodes, and every byte of a ray is
 //! paid three times: on the wire, and by the CRC and COBS at both ends. So a
