@@ -47,7 +47,7 @@ pub fn encode(src: &[u8], out: &mut [u8]) -> Option<usize> {
 /// shorter, and this spares the copy and the scratch buffer of [`encode`].
 ///
 /// A word at a time: the zero bytes of each word are found at once
-/// ([`zero_bytes`]) and each is turned into its run's code, so a run costs
+/// (`zero_bytes`) and each is turned into its run's code, so a run costs
 /// a few instructions however short (a ray's frame has a zero every few
 /// bytes) and a word without a zero a few more. A byte at a time cost a
 /// ray's frame seven instructions a byte on a Cortex-M3.
