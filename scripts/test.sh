@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs every test of the project: formatting, lints, the firmware's thumb builds
+# Runs every test of the project: formatting, lints, the API docs, the firmware's thumb builds
 # and sizes, the no-std dependency check, the kernels' instruction counts on the
 # emulated Cortex-M3 (against the cost model), and the whole workspace's tests (among them 2x2x2 and 3x3x3 arrays
 # of QEMU boards). Installs what it needs (thumb targets and llvm-tools through
@@ -42,6 +42,9 @@ cargo fmt --manifest-path firmware/Cargo.toml -- --check
 
 step "lints (host, all targets)"
 cargo clippy --workspace --all-targets --locked -- -D warnings
+
+step "API docs build without warnings (broken links among them)"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
 
 step "lints and build of the no_std crates for $THUMB"
 cargo clippy -p node-fw -p link-proto --target "$THUMB" --locked -- -D warnings

@@ -159,8 +159,8 @@ impl ClockPlan {
         if self.apb1_div == 1 { self.pclk1() } else { 2 * self.pclk1() }
     }
 
-    /// RCC_PLLCFGR: PLLM [5:0], PLLN [14:6], PLLP [17:16] (0 = /2 .. 3 = /8),
-    /// PLLSRC [22] (1 = HSE), PLLQ [27:24], PLLR [30:28] (kept at 2: unused).
+    /// RCC_PLLCFGR: PLLM `[5:0]`, PLLN `[14:6]`, PLLP `[17:16]` (0 = /2 .. 3 = /8),
+    /// PLLSRC `[22]` (1 = HSE), PLLQ `[27:24]`, PLLR `[30:28]` (kept at 2: unused).
     pub const fn pllcfgr(&self) -> u32 {
         let src = match self.source {
             PllSource::Hsi => 0,
@@ -169,13 +169,13 @@ impl ClockPlan {
         self.m | (self.n << 6) | ((self.p / 2 - 1) << 16) | src | (self.q << 24) | (2 << 28)
     }
 
-    /// RCC_CFGR with the PLL as the system clock: SW [1:0] = 2, HPRE [7:4]
-    /// = /1, PPRE1 [12:10], PPRE2 [15:13].
+    /// RCC_CFGR with the PLL as the system clock: SW `[1:0]` = 2, HPRE `[7:4]`
+    /// = /1, PPRE1 `[12:10]`, PPRE2 `[15:13]`.
     pub const fn cfgr(&self) -> u32 {
         0b10 | (ppre(self.apb1_div) << 10) | (ppre(self.apb2_div) << 13)
     }
 
-    /// FLASH_ACR: LATENCY [3:0], prefetch [8], instruction [9] and data [10] caches.
+    /// FLASH_ACR: LATENCY `[3:0]`, prefetch `[8]`, instruction `[9]` and data `[10]` caches.
     pub const fn flash_acr(&self) -> u32 {
         self.wait_states | (1 << 8) | (1 << 9) | (1 << 10)
     }

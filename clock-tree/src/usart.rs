@@ -3,8 +3,8 @@
 /// A baud-rate register value and the rate it gives.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Brr {
-    /// USART_BRR with oversampling by 16 (OVER8 = 0): DIV_Mantissa [15:4],
-    /// DIV_Fraction [3:0], that is USARTDIV in sixteenths.
+    /// USART_BRR with oversampling by 16 (OVER8 = 0): DIV_Mantissa `[15:4]`,
+    /// DIV_Fraction `[3:0]`, that is USARTDIV in sixteenths.
     pub value: u16,
     /// The rate the peripheral then runs at, baud (rounded down).
     pub actual: u32,

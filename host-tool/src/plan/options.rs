@@ -45,7 +45,7 @@ pub enum Layout {
     Even,
     /// Cut to a preview: the host renders the frame at half the resolution
     /// per axis with the node kernels, measures each cube's cost and fits the
-    /// partition to it ([`Partition::fitted`]; beyond the paper).
+    /// partition to it ([`Partition::fitted`](crate::plan::partition::Partition::fitted); beyond the paper).
     Preview,
 }
 

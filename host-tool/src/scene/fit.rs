@@ -75,7 +75,7 @@ fn bounds(scene: &Scene) -> Option<([f64; 3], [f64; 3])> {
 }
 
 /// The grid a scene is fitted into when none is given: about
-/// [`CUBES_PER_SPHERE`] cubes per sphere, shaped like the spheres' bounding
+/// `CUBES_PER_SPHERE` cubes per sphere, shaped like the spheres' bounding
 /// box, and finer where that leaves fewer than `at_least` cubes along an axis.
 pub fn choose(scene: &Scene, at_least: [u16; 3]) -> Result<[u16; 3], HostError> {
     let (lo, hi) = bounds(scene).ok_or_else(|| input("the scene has no spheres to fit"))?;

@@ -11,7 +11,7 @@
 //! cylinders (`c`), polygons (`p`) and polygonal patches (`pp`) cannot be
 //! rendered: they are refused with their line number, or left out with a
 //! warning when the caller asks. Coordinates are the file's own: the caller
-//! fits the scene into the grid ([`super::fit`]).
+//! fits the scene into the grid ([`super::fit`](mod@super::fit)).
 
 use std::fmt::Write as _;
 
