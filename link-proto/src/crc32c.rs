@@ -63,9 +63,15 @@ pub fn checksum(bytes: &[u8]) -> u32 {
         crc = fold_word(crc, u32::from_le_bytes(word.try_into().unwrap_or([0; 4])));
     }
     for &b in words.remainder() {
-        crc = lookup(&TABLES[0], crc ^ u32::from(b)) ^ (crc >> 8);
+        crc = fold_byte(crc, b);
     }
     !crc
+}
+
+/// `crc` with the byte `b` folded in.
+#[inline(always)]
+fn fold_byte(crc: u32, b: u8) -> u32 {
+    lookup(&TABLES[0], crc ^ u32::from(b)) ^ (crc >> 8)
 }
 
 /// `crc` with the four bytes of the little-endian word `w` folded in.
@@ -91,7 +97,7 @@ pub fn checksum_then_mask(bytes: &mut [u8], mask: u32) -> (u32, bool) {
         word.copy_from_slice(&masked.to_le_bytes());
     }
     for (b, k) in words.into_remainder().iter_mut().zip(mask.to_le_bytes()) {
-        crc = lookup(&TABLES[0], crc ^ u32::from(*b)) ^ (crc >> 8);
+        crc = fold_byte(crc, *b);
         *b ^= k;
         zeros |= u32::from(*b == 0);
     }
@@ -110,7 +116,7 @@ pub fn unmask_then_checksum(bytes: &mut [u8], mask: u32) -> u32 {
     }
     for (b, k) in words.into_remainder().iter_mut().zip(mask.to_le_bytes()) {
         *b ^= k;
-        crc = lookup(&TABLES[0], crc ^ u32::from(*b)) ^ (crc >> 8);
+        crc = fold_byte(crc, *b);
     }
     !crc
 }

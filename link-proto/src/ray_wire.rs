@@ -418,12 +418,11 @@ impl<'de> Deserialize<'de> for RayMsg {
                 let (flags, forms) = (next()?, next()?);
                 let len = wire_len(flags, forms);
                 let bytes = buf.get_mut(..len).ok_or_else(|| A::Error::custom("not a ray"))?;
-                for (i, byte) in bytes.iter_mut().enumerate() {
-                    *byte = match i {
-                        0 => flags,
-                        1 => forms,
-                        _ => next()?,
-                    };
+                let (head, tail) =
+                    bytes.split_at_mut_checked(2).ok_or_else(|| A::Error::custom("not a ray"))?;
+                head.copy_from_slice(&[flags, forms]);
+                for byte in tail {
+                    *byte = next()?;
                 }
                 decode_ray(bytes).ok_or_else(|| A::Error::custom("not a ray"))
             }
