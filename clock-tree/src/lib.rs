@@ -1,4 +1,5 @@
-//! The STM32F4 clock tree of the node boards, as register values.
+//! The STM32F4 clock tree of the node boards, and the DMA streams of their
+//! links, as register values.
 //!
 //! The firmware runs the core from the main PLL at the chip's full speed and
 //! its U(S)ARTs at fixed rates. Which PLL factors, bus prescalers, flash wait
@@ -12,6 +13,7 @@
 #![no_std]
 #![forbid(unsafe_code)]
 
+pub mod dma;
 pub mod nucleo_f413zh;
 pub mod pll;
 pub mod usart;

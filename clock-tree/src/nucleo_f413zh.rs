@@ -12,6 +12,7 @@
 //! 34; 50 MHz / 16 and 100 MHz / 32); the links run at the faster,
 //! 3.125 Mbaud.
 
+use crate::dma::{Stream, UartStreams};
 use crate::pll::{ClockPlan, Limits, PllSource};
 use crate::usart::Brr;
 
@@ -49,3 +50,20 @@ pub const NEIGHBOUR_APB1: Brr = brr(FROM_HSE.pclk1(), NEIGHBOUR_BAUD);
 pub const NEIGHBOUR_APB2: Brr = brr(FROM_HSE.pclk2(), NEIGHBOUR_BAUD);
 /// The host USART3 (APB1).
 pub const HOST_APB1: Brr = brr(FROM_HSE.pclk1(), HOST_BAUD);
+
+/// The DMA streams of the neighbour U(S)ARTs, in port order (+X USART1, -X
+/// USART2, +Y UART4, -Y UART5, +Z USART6, -Z UART7), from RM0430's request
+/// mapping. DMA1 gets the four on APB1, all eight of its streams; USART1
+/// and USART6 take four of DMA2's. The host's USART3 is left to its
+/// interrupt: its requests reach only DMA1 streams 1, 3 and 4, which UART7
+/// and UART4 hold.
+pub const NEIGHBOUR_DMA: [UartStreams; 6] = [
+    UartStreams { rx: Stream::dma2(2, 4), tx: Stream::dma2(7, 4) },
+    UartStreams { rx: Stream::dma1(5, 4), tx: Stream::dma1(6, 4) },
+    UartStreams { rx: Stream::dma1(2, 4), tx: Stream::dma1(4, 4) },
+    UartStreams { rx: Stream::dma1(0, 4), tx: Stream::dma1(7, 8) },
+    UartStreams { rx: Stream::dma2(1, 5), tx: Stream::dma2(6, 5) },
+    UartStreams { rx: Stream::dma1(3, 5), tx: Stream::dma1(1, 5) },
+];
+
+const _: () = assert!(crate::dma::distinct(&NEIGHBOUR_DMA), "two directions share a DMA stream");
