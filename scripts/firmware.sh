@@ -64,23 +64,33 @@ grep -q _SEGGER_RTT "$OUT/node-stm32f413.elf" && "$SIZE" -A "$OUT/node-stm32f413
     echo "error: the stm32f413 image has no defmt log over RTT" >&2
     exit 1
 }
-# The in-memory board's `f413` links charge each byte the path of a UART's
-# interrupt handler, counted in this image (sim-board/src/link_spec.rs:
-# 32 instructions for a byte received, 25 for one sent, of a handler of 51).
-# A handler that grows, or takes a barrier or a loop again, must be counted
-# afresh and the charge changed. (awk reads all of objdump's output: see nm's above.)
+# The in-memory board's `f413` links charge the host link's bytes the path of a
+# UART's interrupt handler, and each frame to a neighbour the path of a DMA send
+# stream's handler, both counted in this image (sim-board/src/link_spec.rs:
+# 32 instructions for a byte received, 25 for one sent, of a handler of 51; 43
+# for a run sent and the next started). A handler that grows, or takes a loop,
+# a call or (the UART's) a barrier, must be counted afresh and the charge
+# changed. (awk reads all of objdump's output: see nm's above.)
 OBJDUMP="$(dirname "$SIZE")/llvm-objdump"
-HANDLER=$("$OBJDUMP" -d --no-show-raw-insn "$OUT/node-stm32f413.elf" | awk '/<USART1>:/ { on = 1; next } /^$/ { on = 0 } on')
-HANDLER_LEN=$(echo "$HANDLER" | grep -c .)
-# A branch or call to any other symbol means part of the path lies outside the
-# handler, where this count does not see it.
-CALLS=$(echo "$HANDLER" | grep -E '<[^>]+>' | grep -cv '<USART1+' || true)
-if [ "$HANDLER_LEN" -eq 0 ] || [ "$HANDLER_LEN" -gt 51 ] || [ "$CALLS" -gt 0 ] || echo "$HANDLER" | grep -qw dmb; then
-    echo "error: the stm32f413 USART1 handler has $HANDLER_LEN instructions and $CALLS calls out" \
-        "(at most 51, none, no dmb): count its paths again and update Transfer::cycles_per_byte" >&2
-    exit 1
-fi
-echo "stm32f413 UART handler: $HANDLER_LEN instructions"
+DISASSEMBLY=$("$OBJDUMP" -d --no-show-raw-insn "$OUT/node-stm32f413.elf")
+# check_handler NAME MAX_INSTRUCTIONS MAX_DMB WHAT
+check_handler() {
+    local name=$1 most=$2 barriers=$3 charge=$4 body len calls
+    body=$(echo "$DISASSEMBLY" | awk "/<$name>:/ { on = 1; next } /^\$/ { on = 0 } on")
+    len=$(echo "$body" | grep -c .)
+    # A branch or call to any other symbol means part of the path lies
+    # outside the handler, where this count does not see it.
+    calls=$(echo "$body" | grep -E '<[^>]+>' | grep -cv "<$name+" || true)
+    if [ "$len" -eq 0 ] || [ "$len" -gt "$most" ] || [ "$calls" -gt 0 ] ||
+        [ "$(echo "$body" | grep -cw dmb || true)" -gt "$barriers" ]; then
+        echo "error: the stm32f413 $name handler has $len instructions and $calls calls out" \
+            "(at most $most, none, $barriers dmb): count its paths again and update $charge" >&2
+        exit 1
+    fi
+    echo "stm32f413 $name handler: $len instructions"
+}
+check_handler USART3 51 0 Transfer::cycles_per_byte
+check_handler DMA2_STREAM7 45 1 Transfer::cycles_per_frame
 
 echo "kernels on the emulated Cortex-M3 (instructions, timed loops included):"
 KERNELS=$(timeout 300 qemu-system-arm -machine mps2-an385 -cpu cortex-m3 -nographic -icount shift=0 \

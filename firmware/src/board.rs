@@ -3,6 +3,8 @@
 pub mod boot_count;
 #[cfg(any(feature = "stm32f413", feature = "netduinoplus2"))]
 pub mod byte_ring;
+#[cfg(dma_links)]
+pub mod dma_link;
 pub mod identity;
 pub mod mmio;
 pub mod wake;
@@ -25,6 +27,10 @@ pub trait LostBytes {
     /// last call, not in all, so that a UART that comes to serve another
     /// port (the wires are mapped once a node knows its place) brings none
     /// of its past to it.
+    ///
+    /// The loop calls it once a pass, after reading the UART: a UART may
+    /// forget there what it learnt of its receiver during the pass (a DMA
+    /// link forgets how many bytes it knows to wait).
     fn take_lost(&mut self) -> u32;
 }
 

@@ -43,6 +43,10 @@ use stm32f4::Periph;
 use stm32f4::stm32f413::{self as pac, Interrupt, gpiob, interrupt, tim2, uart4, usart1};
 
 use super::byte_ring::ByteRing;
+#[cfg(dma_links)]
+use super::dma_link::{Dma, DmaLink, DmaPort};
+#[cfg(dma_links)]
+use clock_tree::nucleo_f413zh::NEIGHBOUR_DMA;
 
 use super::identity;
 use crate::clock::{Clock, Widen};
@@ -166,20 +170,39 @@ struct Rings {
     sending: AtomicBool,
 }
 
-/// Each UART's rings, in the order of [`IRQS`]: the host's, then +X, -X,
-/// +Y, -Y, +Z, -Z.
-static RINGS: [Rings; 7] =
-    [const { Rings { rx: ByteRing::new(), tx: ByteRing::new(), sending: AtomicBool::new(false) } }; 7];
+/// The U(S)ARTs that move bytes by interrupt: all seven, or only the
+/// host's where the neighbours' move by DMA.
+const BY_INTERRUPT: usize = if cfg!(dma_links) { 1 } else { 7 };
 
-/// A U(S)ART driven by its interrupt: the handler moves received bytes into
-/// one ring and bytes to send out of another (see [`super::byte_ring`]).
+/// Each such UART's rings, in the order of [`IRQS`]: the host's, then +X,
+/// -X, +Y, -Y, +Z, -Z.
+static RINGS: [Rings; BY_INTERRUPT] =
+    [const { Rings { rx: ByteRing::new(), tx: ByteRing::new(), sending: AtomicBool::new(false) } };
+        BY_INTERRUPT];
+
+/// Each neighbour link's DMA rings, in port order (+X, -X, +Y, -Y, +Z, -Z).
+#[cfg(dma_links)]
+static DMA_LINKS: [DmaLink; NEIGHBOUR_UARTS] = [const { DmaLink::new() }; NEIGHBOUR_UARTS];
+
+/// A U(S)ART: its registers, and how its bytes reach memory.
 #[derive(Debug)]
 pub struct Uart {
     regs: Regs,
-    rings: &'static Rings,
-    /// The receive ring's count of lost bytes when last taken (only its
-    /// interrupt writes the count, so the difference is taken here).
+    bytes: Bytes,
+    /// The count of lost bytes when last taken (the count only grows, so
+    /// the difference is taken here).
     lost_taken: u32,
+}
+
+/// How a U(S)ART's bytes move between it and memory.
+#[derive(Debug)]
+enum Bytes {
+    /// By its interrupt: the handler moves received bytes into one ring and
+    /// bytes to send out of another (see [`super::byte_ring`]).
+    Interrupt(&'static Rings),
+    /// By two DMA streams (see [`super::dma_link`]).
+    #[cfg(dma_links)]
+    Dma(DmaPort),
 }
 
 impl core::fmt::Debug for Rings {
@@ -193,13 +216,55 @@ impl Uart {
     /// interrupt; the transmit interrupt is enabled while bytes wait. The
     /// bus clock must be on.
     fn new(regs: Regs, brr: Brr, rings: &'static Rings) -> Self {
-        let (mantissa, fraction) = (brr.value >> 4, (brr.value & 0xF) as u8);
+        set_rate(regs, brr);
         with_regs!(regs, r => {
-            r.brr().write(|w| w.div_mantissa().set(mantissa).div_fraction().set(fraction));
             r.cr1().write(|w| w.ue().set_bit().te().set_bit().re().set_bit().rxneie().set_bit());
         });
-        Self { regs, rings, lost_taken: 0 }
+        Self { regs, bytes: Bytes::Interrupt(rings), lost_taken: 0 }
     }
+
+    /// Sets the rate, starts the DMA streams of neighbour link `link` and
+    /// turns on the U(S)ART's DMA requests, transmitter and receiver. Its
+    /// receive interrupt is on only while the loop sleeps ([`sleep`]). The
+    /// bus clock and the DMA controllers' must be on.
+    #[cfg(dma_links)]
+    fn with_dma(regs: Regs, brr: Brr, link: usize) -> Self {
+        set_rate(regs, brr);
+        let (Some(ring), Some(&streams)) = (DMA_LINKS.get(link), NEIGHBOUR_DMA.get(link)) else {
+            exit(false)
+        };
+        let dr = with_regs!(regs, r => r.dr().as_ptr() as u32);
+        let Some(port) = DmaPort::start(ring, streams, dr) else { exit(false) };
+        with_regs!(regs, r => {
+            r.cr3().write(|w| w.dmar().set_bit().dmat().set_bit());
+            r.cr1().write(|w| w.ue().set_bit().te().set_bit().re().set_bit());
+        });
+        Self { regs, bytes: Bytes::Dma(port), lost_taken: 0 }
+    }
+}
+
+/// Clears TC in a U(S)ART's SR, which a DMA stream's writes to DR leave
+/// set (RM0430, "Transmission using DMA"), so that [`Uart::flush`] waits for
+/// the bytes queued now. SR's other clearable flags (RXNE, LBD and, on a
+/// USART, CTS) are written 1, which leaves them as they are: a 0 would take
+/// a received byte from under its stream.
+#[cfg(dma_links)]
+fn clear_transmission_complete(regs: Regs) {
+    const RXNE: u16 = 1 << 5;
+    const LBD: u16 = 1 << 8;
+    const CTS: u16 = 1 << 9;
+    // SAFETY: SR's writable bits are all clear-by-zero; the bits written 1
+    // are the ones it has, and TC alone is written 0.
+    match regs {
+        Regs::Usart(r) => r.sr().write(|w| unsafe { w.bits(RXNE | LBD | CTS) }),
+        Regs::Uart(r) => r.sr().write(|w| unsafe { w.bits(RXNE | LBD) }),
+    };
+}
+
+/// Sets a U(S)ART's baud-rate register.
+fn set_rate(regs: Regs, brr: Brr) {
+    let (mantissa, fraction) = (brr.value >> 4, (brr.value & 0xF) as u8);
+    with_regs!(regs, r => r.brr().write(|w| w.div_mantissa().set(mantissa).div_fraction().set(fraction)));
 }
 
 /// A UART's interrupt, one byte each way at most: the byte received, and
@@ -275,8 +340,8 @@ fn regs_at<RB>(block: *const RB) -> &'static RB {
 /// alike) and its register block's kind.
 macro_rules! uart_interrupts {
     ($($ring:literal: $name:ident $kind:ident),+ $(,)?) => {
-        /// The U(S)ARTs' interrupts, in the order of [`RINGS`].
-        const IRQS: [Interrupt; 7] = [$(Interrupt::$name),+];
+        /// The interrupts of the U(S)ARTs that move bytes by interrupt.
+        const IRQS: &[Interrupt] = &[$(Interrupt::$name),+];
         $(
             #[interrupt]
             fn $name() {
@@ -286,6 +351,7 @@ macro_rules! uart_interrupts {
     };
 }
 
+#[cfg(not(dma_links))]
 uart_interrupts! {
     0: USART3 Usart,
     1: USART1 Usart,
@@ -296,20 +362,143 @@ uart_interrupts! {
     6: UART7 Uart,
 }
 
+#[cfg(dma_links)]
+uart_interrupts! {
+    0: USART3 Usart,
+}
+
+/// The neighbour U(S)ARTs' interrupts when their bytes move by DMA: raised
+/// by a byte received while the loop sleeps ([`sleep`] turns them on), they
+/// only turn themselves off again. Their registers in port order
+/// ([`neighbour_regs`]) and their lines ([`WAKE_IRQS`]) from one list.
+#[cfg(dma_links)]
+macro_rules! wake_interrupts {
+    ($($name:ident $kind:ident),+ $(,)?) => {
+        /// The neighbour U(S)ARTs' lines.
+        const WAKE_IRQS: &[Interrupt] = &[$(Interrupt::$name),+];
+
+        /// The neighbour U(S)ARTs' registers, in port order.
+        fn neighbour_regs() -> [Regs; NEIGHBOUR_UARTS] {
+            [$(Regs::$kind(regs_at(pac::$name::ptr()))),+]
+        }
+
+        $(
+            #[interrupt]
+            fn $name() {
+                let regs = Regs::$kind(regs_at(pac::$name::ptr()));
+                with_regs!(regs, r => r.cr1().modify(|_, w| w.rxneie().clear_bit()));
+            }
+        )+
+    };
+}
+
+#[cfg(dma_links)]
+wake_interrupts! {
+    USART1 Usart,
+    USART2 Usart,
+    UART4 Uart,
+    UART5 Uart,
+    USART6 Usart,
+    UART7 Uart,
+}
+
+/// The DMA streams' interrupts of each neighbour link (receive, then send),
+/// and [`DMA_IRQS`], from one list. Each interrupt is checked against the
+/// link's streams in [`NEIGHBOUR_DMA`] when the firmware builds.
+#[cfg(dma_links)]
+macro_rules! dma_interrupts {
+    ($($link:literal: $rx:ident $tx:ident),+ $(,)?) => {
+        /// The DMA streams' lines.
+        const DMA_IRQS: &[Interrupt] = &[$(Interrupt::$rx, Interrupt::$tx),+];
+        $(
+            const _: () = assert!(
+                matches!(stream_irq(NEIGHBOUR_DMA[$link].rx), Some(Interrupt::$rx))
+                    && matches!(stream_irq(NEIGHBOUR_DMA[$link].tx), Some(Interrupt::$tx)),
+                "a DMA interrupt that is not its link's stream"
+            );
+
+            #[interrupt]
+            fn $rx() {
+                let link = DMA_LINKS.get($link);
+                if let (Some(link), Some(rx)) = (link, NEIGHBOUR_DMA.get($link).and_then(|s| Dma::of(s.rx))) {
+                    link.on_received(rx);
+                }
+            }
+
+            #[interrupt]
+            fn $tx() {
+                let link = DMA_LINKS.get($link);
+                if let (Some(link), Some(tx)) = (link, NEIGHBOUR_DMA.get($link).and_then(|s| Dma::of(s.tx))) {
+                    link.on_sent(tx);
+                }
+            }
+        )+
+    };
+}
+
+#[cfg(dma_links)]
+dma_interrupts! {
+    0: DMA2_STREAM2 DMA2_STREAM7,
+    1: DMA1_STREAM5 DMA1_STREAM6,
+    2: DMA1_STREAM2 DMA1_STREAM4,
+    3: DMA1_STREAM0 DMA1_STREAM7,
+    4: DMA2_STREAM1 DMA2_STREAM6,
+    5: DMA1_STREAM3 DMA1_STREAM1,
+}
+
+/// A stream's interrupt line.
+#[cfg(dma_links)]
+const fn stream_irq(s: clock_tree::dma::Stream) -> Option<Interrupt> {
+    use Interrupt as I;
+    use clock_tree::dma::Controller::{Dma1, Dma2};
+    Some(match (s.controller, s.stream) {
+        (Dma1, 0) => I::DMA1_STREAM0,
+        (Dma1, 1) => I::DMA1_STREAM1,
+        (Dma1, 2) => I::DMA1_STREAM2,
+        (Dma1, 3) => I::DMA1_STREAM3,
+        (Dma1, 4) => I::DMA1_STREAM4,
+        (Dma1, 5) => I::DMA1_STREAM5,
+        (Dma1, 6) => I::DMA1_STREAM6,
+        (Dma1, 7) => I::DMA1_STREAM7,
+        (Dma2, 0) => I::DMA2_STREAM0,
+        (Dma2, 1) => I::DMA2_STREAM1,
+        (Dma2, 2) => I::DMA2_STREAM2,
+        (Dma2, 3) => I::DMA2_STREAM3,
+        (Dma2, 4) => I::DMA2_STREAM4,
+        (Dma2, 5) => I::DMA2_STREAM5,
+        (Dma2, 6) => I::DMA2_STREAM6,
+        (Dma2, 7) => I::DMA2_STREAM7,
+        _ => return None,
+    })
+}
+
 impl ErrorType for Uart {
     type Error = Infallible;
 }
 
 impl super::LostBytes for Uart {
     fn take_lost(&mut self) -> u32 {
-        let lost = self.rings.rx.lost();
+        let lost = match &mut self.bytes {
+            Bytes::Interrupt(rings) => rings.rx.lost(),
+            // An overrun in the U(S)ART (the stream late) counts one byte;
+            // reading SR here and the stream's next read of DR clear it.
+            #[cfg(dma_links)]
+            Bytes::Dma(port) => {
+                let overrun = with_regs!(self.regs, r => r.sr().read().ore().bit_is_set());
+                port.lost().wrapping_add(u32::from(overrun))
+            }
+        };
         lost.wrapping_sub(core::mem::replace(&mut self.lost_taken, lost))
     }
 }
 
 impl ReadReady for Uart {
     fn read_ready(&mut self) -> Result<bool, Infallible> {
-        Ok(!self.rings.rx.is_empty())
+        Ok(match &mut self.bytes {
+            Bytes::Interrupt(rings) => !rings.rx.is_empty(),
+            #[cfg(dma_links)]
+            Bytes::Dma(port) => port.read_ready(),
+        })
     }
 }
 
@@ -318,7 +507,12 @@ impl Read for Uart {
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, Infallible> {
         let Some(first) = buf.first_mut() else { return Ok(0) };
         *first = loop {
-            if let Some(byte) = self.rings.rx.pop() {
+            let byte = match &mut self.bytes {
+                Bytes::Interrupt(rings) => rings.rx.pop(),
+                #[cfg(dma_links)]
+                Bytes::Dma(port) => port.read_byte(),
+            };
+            if let Some(byte) = byte {
                 break byte;
             }
         };
@@ -328,7 +522,11 @@ impl Read for Uart {
 
 impl WriteReady for Uart {
     fn write_ready(&mut self) -> Result<bool, Infallible> {
-        Ok(!self.rings.tx.is_full())
+        Ok(match &self.bytes {
+            Bytes::Interrupt(rings) => !rings.tx.is_full(),
+            #[cfg(dma_links)]
+            Bytes::Dma(port) => port.write_ready(),
+        })
     }
 }
 
@@ -339,13 +537,21 @@ impl Write for Uart {
         if buf.is_empty() {
             return Ok(0);
         }
-        while self.rings.tx.is_full() {}
-        let queued = buf.iter().take_while(|&&b| self.rings.tx.push(b)).count();
+        while !self.write_ready()? {}
+        let rings = match &mut self.bytes {
+            Bytes::Interrupt(rings) => *rings,
+            #[cfg(dma_links)]
+            Bytes::Dma(port) => {
+                clear_transmission_complete(self.regs);
+                return Ok(port.write(buf));
+            }
+        };
+        let queued = buf.iter().take_while(|&&b| rings.tx.push(b)).count();
         // Start the line now rather than at the interrupt's next turn; the
         // interrupt goes on while the loop is busy elsewhere. (QEMU 7.2's
         // USART model raises no transmit interrupt: there this start sends
         // everything, the model taking each byte at once.)
-        let (regs, rings) = (self.regs, self.rings);
+        let regs = self.regs;
         cortex_m::interrupt::free(|_| {
             with_regs!(regs, r => r.cr1().modify(|_, w| w.txeie().set_bit()));
             rings.sending.store(true, Ordering::Relaxed);
@@ -356,7 +562,12 @@ impl Write for Uart {
 
     /// Waits until every queued byte has left the UART.
     fn flush(&mut self) -> Result<(), Infallible> {
-        while !self.rings.tx.is_empty() || !with_regs!(self.regs, r => r.sr().read().tc().bit_is_set()) {}
+        let queued = |bytes: &Bytes| match bytes {
+            Bytes::Interrupt(rings) => !rings.tx.is_empty(),
+            #[cfg(dma_links)]
+            Bytes::Dma(port) => !port.sent_all(),
+        };
+        while queued(&self.bytes) || !with_regs!(self.regs, r => r.sr().read().tc().bit_is_set()) {}
         Ok(())
     }
 }
@@ -419,14 +630,27 @@ pub fn init() -> Parts {
     alternate!(c, 8, 6, 7); // USART6: +Z
     alternate!(e, 8, 7, 8); // UART7: -Z
     let host = Uart::new(Regs::Usart(keep(dp.USART3)), HOST_APB1, &RINGS[0]);
-    let neighbours = [
-        Uart::new(Regs::Usart(keep(dp.USART1)), NEIGHBOUR_APB2, &RINGS[1]),
-        Uart::new(Regs::Usart(keep(dp.USART2)), NEIGHBOUR_APB1, &RINGS[2]),
-        Uart::new(Regs::Uart(keep(dp.UART4)), NEIGHBOUR_APB1, &RINGS[3]),
-        Uart::new(Regs::Uart(keep(dp.UART5)), NEIGHBOUR_APB1, &RINGS[4]),
-        Uart::new(Regs::Usart(keep(dp.USART6)), NEIGHBOUR_APB2, &RINGS[5]),
-        Uart::new(Regs::Uart(keep(dp.UART7)), NEIGHBOUR_APB1, &RINGS[6]),
+    let regs = [
+        (Regs::Usart(keep(dp.USART1)), NEIGHBOUR_APB2),
+        (Regs::Usart(keep(dp.USART2)), NEIGHBOUR_APB1),
+        (Regs::Uart(keep(dp.UART4)), NEIGHBOUR_APB1),
+        (Regs::Uart(keep(dp.UART5)), NEIGHBOUR_APB1),
+        (Regs::Usart(keep(dp.USART6)), NEIGHBOUR_APB2),
+        (Regs::Uart(keep(dp.UART7)), NEIGHBOUR_APB1),
     ];
+    #[cfg(not(dma_links))]
+    let neighbours = {
+        let mut rings = RINGS.iter().skip(1);
+        regs.map(|(r, brr)| Uart::new(r, brr, rings.next().unwrap_or(&RINGS[0])))
+    };
+    #[cfg(dma_links)]
+    let neighbours = {
+        // The streams are DMA1's and DMA2's, which are taken here for good.
+        let (_dma1, _dma2) = (keep(dp.DMA1), keep(dp.DMA2));
+        rcc.ahb1enr().modify(|_, w| w.dma1en().set_bit().dma2en().set_bit());
+        let mut link = 0..;
+        regs.map(|(r, brr)| Uart::with_dma(r, brr, link.next().unwrap_or(0)))
+    };
     let lights = Lights::new(Led::new(b, LD1_GREEN), Led::new(b, LD3_RED));
     let info = board_info(core);
     Parts { host, neighbours, clock: Timer::start(keep(dp.TIM2), timer_hz(&info)), info, lights }
@@ -522,9 +746,16 @@ pub const WAKE_PERIOD: u32 = 200_000;
 /// into the rings.
 pub fn arm_wakeups() {
     super::wake::start_tick(WAKE_PERIOD);
-    for irq in IRQS {
+    for &irq in IRQS {
         // SAFETY: each of these lines has its handler above, which touches
         // nothing but its UART's SR and DR and its ring's producer side.
+        unsafe { NVIC::unmask(irq) };
+    }
+    #[cfg(dma_links)]
+    for &irq in WAKE_IRQS.iter().chain(DMA_IRQS) {
+        // SAFETY: each has its handler above: a U(S)ART's clears its own
+        // receive interrupt enable; a stream's touches its flags, its link's
+        // handler-side indices and (to start a run) its own registers.
         unsafe { NVIC::unmask(irq) };
     }
     // SAFETY: called once at boot, outside any critical section.
@@ -535,12 +766,35 @@ pub fn arm_wakeups() {
 /// interrupts masked, so a byte that arrives between them still ends the
 /// `wfi` (a pending interrupt wakes a masked core) and is taken by its
 /// handler once they are unmasked again.
+///
+/// Bytes a DMA stream receives raise no interrupt, so before sleeping the
+/// neighbour U(S)ARTs' receive interrupts are turned on (each handler
+/// turns its own off again), and the streams are looked at once more: a
+/// byte that came before the interrupt was on raised none.
 pub fn sleep() {
     cortex_m::interrupt::free(|_| {
-        if RINGS.iter().all(|r| r.rx.is_empty()) {
-            cortex_m::asm::wfi();
+        if !nothing_waits() {
+            return;
         }
+        #[cfg(dma_links)]
+        {
+            for regs in neighbour_regs() {
+                with_regs!(regs, r => r.cr1().modify(|_, w| w.rxneie().set_bit()));
+            }
+            if !nothing_waits() {
+                return;
+            }
+        }
+        cortex_m::asm::wfi();
     });
+}
+
+/// Whether no received byte waits for the loop.
+fn nothing_waits() -> bool {
+    let rings = RINGS.iter().all(|r| r.rx.is_empty());
+    #[cfg(dma_links)]
+    let rings = rings && DMA_LINKS.iter().zip(NEIGHBOUR_DMA).all(|(link, s)| link.caught_up(s.rx));
+    rings
 }
 
 /// Nothing to forget: the handlers take what pends.
