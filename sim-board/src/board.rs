@@ -541,7 +541,7 @@ fn channel_timeout(config: &SimConfig) -> u64 {
     let frame = link_proto::MAX_FRAME_LEN as u64;
     let trip = |l: &LinkSpec| {
         let l: LinkModel = l.model();
-        2 * (l.latency + frame * (l.byte + l.byte_cpu))
+        2 * (l.latency + frame * (l.byte + l.byte_cpu) + l.frame_cpu)
     };
     let c = &config.cost;
     let work = c.shade.max(c.create).max(c.trace + WALK_CUBES * c.cube_step);

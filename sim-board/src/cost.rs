@@ -212,6 +212,9 @@ pub struct LinkModel {
     /// Cycles of the node's CPU to move one byte between the UART and
     /// memory, paid by the sender and again by the receiver.
     pub byte_cpu: u64,
+    /// Cycles of the sender's CPU to start a frame on its way (a DMA
+    /// transfer's set-up and its completion interrupt).
+    pub frame_cpu: u64,
     /// Cycles from the last byte sent to the message's arrival.
     pub latency: u64,
     /// Messages a link holds before the sender sees it full.

@@ -78,7 +78,8 @@ pub struct SimLinks<'a> {
     pub host_link: crate::cost::LinkModel,
     /// Set when the node tried to send through a port with no neighbour.
     pub miswired: Option<Port>,
-    /// CPU cycles spent moving the bytes of the messages sent and taken.
+    /// CPU cycles spent moving the bytes of the messages sent and taken,
+    /// and starting the frames sent.
     pub byte_cpu: u64,
     /// Messages sent or taken that shared a frame with the ones before
     /// them: each spares its end a frame's handling.
@@ -182,7 +183,7 @@ impl SimLinks<'_> {
         };
         state.outbox.push(stamped);
         state.waiting = Some(Waiting { start, len: bytes, count: 1, this_poll: true });
-        self.byte_cpu += bytes * model.byte_cpu;
+        self.byte_cpu += bytes * model.byte_cpu + model.frame_cpu;
     }
 }
 

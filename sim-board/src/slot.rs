@@ -134,7 +134,7 @@ impl Slot {
                 }
                 let written = write_frame(&mut ports[p], &mut rng[p], &faults, model(port), clock, bytes);
                 if written {
-                    byte_cpu += bytes.len() as u64 * model(port).byte_cpu;
+                    byte_cpu += bytes.len() as u64 * model(port).byte_cpu + model(port).frame_cpu;
                 }
                 written
             });

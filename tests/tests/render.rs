@@ -443,7 +443,8 @@ fn link_presets_change_time_not_the_image() {
             // under 64 bytes). A poll is charged at least one cycle.
             let cost = sim_board::CostModel::default();
             let messages = 4 + 2 * 3;
-            let finish = messages * cost.short_message + messages * 64 * opts_byte_cpu(preset, transfer);
+            let (byte_cpu, frame_cpu) = opts_cpu(preset, transfer);
+            let finish = messages * (cost.short_message + 64 * byte_cpu + frame_cpu);
             let gap = busy.total() as i64 - load.running as i64;
             assert!(
                 (-(load.running as i64) / 1000..=finish as i64).contains(&gap),
@@ -453,12 +454,14 @@ fn link_presets_change_time_not_the_image() {
         }
         r
     };
-    fn opts_byte_cpu(preset: LinkPreset, transfer: Option<Transfer>) -> u64 {
-        transfer.unwrap_or(preset.host().transfer).cycles_per_byte()
+    /// The dearer of the links' CPU costs, a byte and a frame.
+    fn opts_cpu(preset: LinkPreset, transfer: Option<Transfer>) -> (u64, u64) {
+        let [n, h] = [preset.neighbour(), preset.host()].map(|l| transfer.unwrap_or(l.transfer));
+        (n.cycles_per_byte().max(h.cycles_per_byte()), n.cycles_per_frame().max(h.cycles_per_frame()))
     }
     let ideal = with(LinkPreset::Ideal, None);
     let dma = with(LinkPreset::F413, Some(Transfer::Dma));
-    let irq = with(LinkPreset::F413, None);
+    let irq = with(LinkPreset::F413, Some(Transfer::Interrupt));
     let sum = |r: &host_tool::results::RenderResult<Cycles>| {
         r.busy.iter().flatten().copied().sum::<sim_board::Busy>()
     };
@@ -473,8 +476,11 @@ fn link_presets_change_time_not_the_image() {
     let handling = irq_busy.messaging - Transfer::Interrupt.cycles_per_byte() * moved;
     let cost = sim_board::CostModel::default();
     let retirements = ideal.frame.rays_terminated * cost.retire_message;
-    for (name, m) in [("dma", dma_busy.messaging), ("irq less its bytes", handling)] {
-        let (lo, hi) = (ideal_busy.messaging.saturating_sub(retirements), ideal_busy.messaging * 105 / 100);
+    // A frame sent by DMA costs its transfer, and frames are at most messages.
+    let transfers = Transfer::Dma.cycles_per_frame() * dma_busy.sent;
+    for (name, m, more) in [("dma", dma_busy.messaging, transfers), ("irq less its bytes", handling, 0)] {
+        let lo = ideal_busy.messaging.saturating_sub(retirements);
+        let hi = ideal_busy.messaging * 105 / 100 + more;
         assert!(
             (lo..=hi).contains(&m),
             "{name}: messaging {m} against {} on ideal links",

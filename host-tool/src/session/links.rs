@@ -17,7 +17,8 @@ pub struct LinkChoice {
     pub baud: Option<u64>,
     /// Host links' line rate, baud.
     pub host_baud: Option<u64>,
-    /// How bytes reach memory, on every link.
+    /// How bytes reach memory on the neighbour links (the host link's is
+    /// the preset's: on the STM32 boards it has no DMA streams left).
     pub transfer: Option<Transfer>,
 }
 
@@ -36,17 +37,17 @@ impl LinkChoice {
                 Err(input(format!("{flag} must be from 300 to the core clock ({clock_hz} Hz), got {baud}")))
             }
         };
-        let pick = |spec: LinkSpec, baud: Option<u64>, flag: &str| -> Result<LinkSpec, HostError> {
-            Ok(LinkSpec {
+        let pick = |spec: LinkSpec, baud: Option<u64>, flag: &str, transfer: Option<Transfer>| {
+            Ok::<_, HostError>(LinkSpec {
                 clock_hz,
                 baud: rate(flag, baud.unwrap_or(spec.baud))?,
-                transfer: self.transfer.unwrap_or(spec.transfer),
+                transfer: transfer.unwrap_or(spec.transfer),
                 ..spec
             })
         };
         Ok((
-            pick(self.preset.neighbour(), self.baud, "--baud")?,
-            pick(self.preset.host(), self.host_baud, "--host-baud")?,
+            pick(self.preset.neighbour(), self.baud, "--baud", self.transfer)?,
+            pick(self.preset.host(), self.host_baud, "--host-baud", None)?,
         ))
     }
 }
@@ -73,6 +74,7 @@ pub fn spec_json(spec: &LinkSpec) -> Value {
         "transfer": spec.transfer.name(),
         "wire_cycles_per_byte": model.byte,
         "cpu_cycles_per_byte": model.byte_cpu,
+        "cpu_cycles_per_frame": model.frame_cpu,
         "latency_cycles": model.latency,
     })
 }
@@ -96,12 +98,13 @@ mod tests {
             clock_hz: Some(50_000_000),
             baud: Some(1_000_000),
             host_baud: None,
-            transfer: Some(Transfer::Dma),
+            transfer: Some(Transfer::Polled),
         };
         let (n, h) = choice.specs().unwrap();
-        // 50 MHz x 10 bits / 1 Mbaud = 500 cycles a byte; the host keeps its rate.
-        assert_eq!((n.model().byte, n.model().byte_cpu), (500, 0));
-        assert_eq!((h.baud, h.clock_hz, h.transfer), (921_600, 50_000_000, Transfer::Dma));
+        // 50 MHz x 10 bits / 1 Mbaud = 500 cycles a byte, polled; the host
+        // keeps its rate and its interrupt.
+        assert_eq!((n.model().byte, n.model().byte_cpu, n.transfer), (500, 16, Transfer::Polled));
+        assert_eq!((h.baud, h.clock_hz, h.transfer), (921_600, 50_000_000, Transfer::Interrupt));
     }
 
     #[test]
