@@ -194,14 +194,19 @@ pub fn markdown(cfg: &ScalingConfig, rows: &[ScalingRow]) -> String {
 /// [`markdown`], the first column each row's node count or (`by_shape`) its array.
 fn table(cfg: &ScalingConfig, rows: &[ScalingRow], by_shape: bool) -> String {
     let o = &cfg.base;
+    let cpu = |l: &sim_board::LinkSpec| {
+        let (t, m) = (l.transfer, l.model());
+        format!("{} ({} cycles of CPU a byte, {} a frame)", t.name(), m.byte_cpu, m.frame_cpu)
+    };
     let mut s = format!(
-        "Links: {} (neighbours {} baud, host {} baud, {} cycles a byte on the wire, {} of CPU); \
+        "Links: {} (neighbours {} baud, {} cycles a byte on the wire, {}; host {} baud, {}); \
          image {}x{}; static partitions.\n\n",
         o.link_preset.name(),
         o.sim.link.baud,
-        o.sim.host_link.baud,
         o.sim.link.byte_cycles(),
-        o.sim.link.transfer.cycles_per_byte(),
+        cpu(&o.sim.link),
+        o.sim.host_link.baud,
+        cpu(&o.sim.host_link),
         o.size[0],
         o.size[1]
     );
