@@ -41,18 +41,15 @@ pub struct DirectImage {
     pub rays: u64,
 }
 
-/// The CPU a board spends moving the frames it sends or receives, on its
-/// neighbour and its host links: none on the `ideal` links, 51 cycles a
-/// byte where an interrupt takes each byte (the `f413` host link), 65 a
-/// frame sent where DMA moves them (the `f413` neighbour links). A ray's
-/// frame of 40 bytes by interrupt costs its ends more than its kernel does,
-/// and a fit that left the bytes out cut partitions that pass too many rays.
+/// The CPU a board spends on each byte of a frame it sends or receives, on
+/// its neighbour and its host links: none where DMA moves them (the `ideal`
+/// links), 51 cycles where an interrupt takes each byte (`f413`). A ray's
+/// frame of 40 bytes then costs its ends more than its kernel does, and a
+/// fit that left the bytes out cut partitions that pass too many rays.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ByteCpu {
     /// Cycles a byte on a neighbour link.
     pub neighbour: u64,
-    /// Cycles a frame sent on a neighbour link.
-    pub neighbour_frame: u64,
     /// Cycles a byte on the host link.
     pub host: u64,
 }
@@ -60,8 +57,7 @@ pub struct ByteCpu {
 impl ByteCpu {
     /// Bytes priced as the in-memory board's links charge them.
     pub fn of(link: &sim_board::LinkSpec, host: &sim_board::LinkSpec) -> Self {
-        let (link, host) = (link.model(), host.model());
-        Self { neighbour: link.byte_cpu, neighbour_frame: link.frame_cpu, host: host.byte_cpu }
+        Self { neighbour: link.model().byte_cpu, host: host.model().byte_cpu }
     }
 }
 
@@ -164,16 +160,10 @@ struct HopPrice {
 
 impl HopPrice {
     fn new(cost: &sim_board::CostModel, bytes: ByteCpu) -> Self {
-        let grant = cost.short_message
-            + bytes.neighbour * frame_len(&Message::Grant(node_fw::node::GRANT_TARGET))
-            + bytes.neighbour_frame;
+        let grant =
+            cost.short_message + bytes.neighbour * frame_len(&Message::Grant(node_fw::node::GRANT_TARGET));
         let grants = grant / u64::from(node_fw::node::GRANT_TARGET / 2);
-        // The sender pays a frame's transfer: half of it to each side.
-        let frame = bytes.neighbour_frame / 2;
-        Self {
-            fixed: cost.granted_ray + grants + frame + (cost.trace + cost.pass) / 2,
-            byte: bytes.neighbour,
-        }
+        Self { fixed: cost.granted_ray + grants + (cost.trace + cost.pass) / 2, byte: bytes.neighbour }
     }
 
     /// One side of a hop of `ray` (its frame encoded only where bytes cost).
