@@ -15,11 +15,14 @@ fn main() {
     let map = format!("memory/{board}.x");
     fs::copy(&map, out.join("memory.x")).expect("memory map of the board");
     println!("cargo:rustc-link-search={}", out.display());
-    // The real board moves its neighbour links' bytes by DMA; the emulated
-    // STM32 has no DMA model, and moves them by interrupt.
+    // The real board moves its neighbour links' bytes by DMA (unless built
+    // with `interrupt-links`); the emulated STM32 has no DMA model, and
+    // moves them by interrupt.
     println!("cargo::rustc-check-cfg=cfg(dma_links)");
     if board == "stm32f413" {
-        println!("cargo:rustc-cfg=dma_links");
+        if env::var_os("CARGO_FEATURE_INTERRUPT_LINKS").is_none() {
+            println!("cargo:rustc-cfg=dma_links");
+        }
         // defmt's log strings live in the ELF, not the flash: its linker script places them.
         println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
     }

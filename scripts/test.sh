@@ -50,7 +50,8 @@ step "lints and build of the no_std crates for $THUMB"
 cargo clippy -p node-fw -p link-proto --target "$THUMB" --locked -- -D warnings
 cargo build -p node-fw --target "$THUMB" --release --locked
 (cd firmware && cargo clippy --release --locked --bins -- -D warnings)
-for board in stm32f413 netduinoplus2; do
+# (stm32f413,interrupt-links: the F413 image with the emulated STM32's byte interrupts, its fallback.)
+for board in stm32f413 stm32f413,interrupt-links netduinoplus2; do
     (cd firmware && cargo clippy --release --locked --bin node --no-default-features --features "$board" \
         --target thumbv7em-none-eabihf -- -D warnings)
 done
