@@ -1,5 +1,7 @@
 //! STM32F4 DMA streams for U(S)ARTs: which stream and channel serve a
-//! direction, and where a stream's flags sit.
+//! direction, where a stream's flags sit, and the ring arithmetic of a
+//! circular receive stream and of a send stream's runs (tested against a
+//! model of the streams in `tests/dma_rings.rs`).
 //!
 //! Each of the two DMA controllers has eight streams; a peripheral's request
 //! reaches a stream through one of its channels, fixed by the chip's request
@@ -113,4 +115,34 @@ const fn nth(plan: &[UartStreams], i: usize) -> Stream {
 
 const fn same_controller(a: Controller, b: Controller) -> bool {
     matches!((a, b), (Controller::Dma1, Controller::Dma1) | (Controller::Dma2, Controller::Dma2))
+}
+
+/// Where a circular receive stream of a `len`-byte ring is, in bytes
+/// written in all (wrapping), from its `laps` counted by its
+/// transfer-complete interrupt and `ndtr`, the bytes left in the lap, given
+/// a position `behind` it by less than a lap (the reader's: a reader a lap
+/// behind has lost bytes anyway).
+///
+/// NDTR reloads the moment a lap ends, before the interrupt that counts
+/// the lap has run: a position before `behind` is such a lap, not yet
+/// counted, and one lap more is added. (`len` divides 2^32, so positions
+/// wrap with the laps.)
+pub const fn circular_position(laps: u32, ndtr: u16, len: u32, behind: u32) -> u32 {
+    let left = if (ndtr as u32) < len { ndtr as u32 } else { len };
+    let at = laps.wrapping_mul(len).wrapping_add(len - left);
+    if (at.wrapping_sub(behind) as i32) < 0 { at.wrapping_add(len) } else { at }
+}
+
+/// The next run a send stream takes from a `len`-byte ring: where it starts
+/// in the ring and how long it is, given the bytes `sent` and `queued` in
+/// all; `None` when nothing waits. A run never wraps: what lies past the
+/// ring's end goes in the next.
+pub const fn next_run(sent: u32, queued: u32, len: u32) -> Option<(u32, u32)> {
+    let waiting = queued.wrapping_sub(sent);
+    if waiting == 0 {
+        return None;
+    }
+    let at = sent % len;
+    let to_end = len - at;
+    Some((at, if waiting < to_end { waiting } else { to_end }))
 }

@@ -26,7 +26,7 @@
 use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicU32, Ordering, compiler_fence};
 
-use clock_tree::dma::{Controller, Stream, UartStreams, flags};
+use clock_tree::dma::{Controller, Stream, UartStreams, circular_position, flags, next_run};
 use stm32f4::stm32f413::{self as pac, dma1};
 
 /// Bytes of a receive ring: 327 680 core cycles of a link at 3.125 Mbaud,
@@ -82,19 +82,17 @@ impl DmaLink {
         }
     }
 
-    /// Where the receive stream is, in bytes written in all, given the
-    /// furthest it was `seen` (to count a lap its handler has not counted
-    /// yet: NDTR reloads before the handler runs).
-    fn written(&self, rx: Dma, seen: u32) -> u32 {
-        let (laps, left) = loop {
+    /// Where the receive stream is, in bytes written in all
+    /// ([`circular_position`], the loop's `read` less than a lap behind).
+    fn written(&self, rx: Dma, read: u32) -> u32 {
+        loop {
             let laps = self.laps.load(Ordering::Relaxed);
-            let left = u32::from(rx.stream().ndtr().read().ndt().bits()).min(RX_LEN as u32);
+            let left = rx.stream().ndtr().read().ndt().bits();
+            // A lap counted between the two reads: look again.
             if self.laps.load(Ordering::Relaxed) == laps {
-                break (laps, left);
+                break circular_position(laps, left, RX_LEN as u32, read);
             }
-        };
-        let at = laps.wrapping_mul(RX_LEN as u32).wrapping_add(RX_LEN as u32 - left);
-        if (at.wrapping_sub(seen) as i32) < 0 { at.wrapping_add(RX_LEN as u32) } else { at }
+        }
     }
 
     /// Whether the loop has read all that the stream wrote (a stream past
@@ -108,20 +106,19 @@ impl DmaLink {
     /// it is idle. With interrupts off, or from the send handler.
     #[inline(always)]
     fn send_next(&self, tx: Dma) {
-        let sent = self.sent.load(Ordering::Relaxed);
-        let waiting = self.queued.load(Ordering::Relaxed).wrapping_sub(sent) as usize;
-        if waiting == 0 || self.in_flight.load(Ordering::Relaxed) != 0 {
+        if self.in_flight.load(Ordering::Relaxed) != 0 {
             return;
         }
-        let at = sent as usize % TX_LEN;
-        let run = waiting.min(TX_LEN - at);
-        self.in_flight.store(run as u32, Ordering::Relaxed);
-        let start = self.tx.get().cast::<u8>().wrapping_add(at) as u32;
+        let (sent, queued) = (self.sent.load(Ordering::Relaxed), self.queued.load(Ordering::Relaxed));
+        let Some((at, run)) = next_run(sent, queued, TX_LEN as u32) else { return };
+        self.in_flight.store(run, Ordering::Relaxed);
+        let start = self.tx.get().cast::<u8>().wrapping_add(at as usize) as u32;
         tx.clear();
         let st = tx.stream();
         // SAFETY: the address is inside `tx`, which lives for ever, and the
         // run lies in it (`run <= TX_LEN - at`).
         st.m0ar().write(|w| unsafe { w.m0a().bits(start) });
+        // A run is at most TX_LEN bytes: it fits NDTR.
         st.ndtr().write(|w| w.ndt().set(run as u16));
         // The bytes in memory before the stream reads them.
         cortex_m::asm::dmb();
@@ -226,14 +223,12 @@ impl Dma {
     }
 }
 
-/// The loop's side of a link: its streams and what it has seen of them.
+/// The loop's side of a link: its streams, and what it knows waits.
 #[derive(Debug)]
 pub struct DmaPort {
     link: &'static DmaLink,
     rx: Dma,
     tx: Dma,
-    /// The furthest the receive stream has been seen.
-    seen: u32,
     /// Bytes known to wait since the stream was last looked at, so that a
     /// byte read costs no look at the stream. Dropped once a pass
     /// ([`DmaPort::lost`]).
@@ -272,8 +267,7 @@ impl DmaPort {
         st.cr().modify(|_, w| w.pl().high().circ().enabled().dir().peripheral_to_memory());
         st.cr().modify(|_, w| w.en().enabled());
         tx.stream().cr().modify(|_, w| w.pl().medium().dir().memory_to_peripheral());
-        let seen = link.read.load(Ordering::Relaxed);
-        Some(Self { link, rx, tx, seen, ready: 0, lost: 0 })
+        Some(Self { link, rx, tx, ready: 0, lost: 0 })
     }
 
     /// Bytes the stream wrote that the loop has not read: those known, or
@@ -284,11 +278,11 @@ impl DmaPort {
             return self.ready;
         }
         let read = self.link.read.load(Ordering::Relaxed);
-        self.seen = self.link.written(self.rx, self.seen);
-        let waiting = self.seen.wrapping_sub(read);
+        let written = self.link.written(self.rx, read);
+        let waiting = written.wrapping_sub(read);
         if waiting > OVERRUN {
             self.lost = self.lost.wrapping_add(waiting);
-            self.link.read.store(self.seen, Ordering::Relaxed);
+            self.link.read.store(written, Ordering::Relaxed);
             return 0;
         }
         self.ready = waiting;
