@@ -18,6 +18,11 @@
 //! links at the rates of [`clock_tree::nucleo_f413zh`]; the clock is TIM2,
 //! a 32-bit timer at the core clock.
 //!
+//! Bytes move by interrupt, a byte at a time, through rings
+//! ([`super::byte_ring`]); on the real board the neighbour links' move by
+//! DMA instead (`dma_link.rs`; not with the `interrupt-links`
+//! feature), which QEMU does not model.
+//!
 //! Under QEMU the RCC is a stub whose ready flags never rise: every wait for
 //! one is bounded, the core stays on its reset clock, and the emulator
 //! ignores baud rates anyway. TIM2 there counts virtual nanoseconds, which
