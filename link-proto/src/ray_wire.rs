@@ -624,14 +624,16 @@ mod tests {
         /// before them, and reads back from them whatever follows.
         #[test]
         fn rays_go_through_postcard_as_their_bare_bytes(r in arb_ray(), tail in proptest::num::u8::ANY) {
+            let fail = |why: &'static str| proptest::test_runner::TestCaseError::fail(why);
             let mut buf = [0u8; RAY_MAX_LEN];
-            let n = encode_ray(&r, &mut buf).unwrap();
+            let n = encode_ray(&r, &mut buf).ok_or_else(|| fail("RAY_MAX_LEN holds any ray"))?;
             let mut out = [0u8; RAY_MAX_LEN + 8];
-            let through = postcard::to_slice(&r, &mut out).unwrap().to_vec();
+            let through = postcard::to_slice(&r, &mut out).map_err(|_| fail("postcard wrote no ray"))?.to_vec();
             proptest::prop_assert_eq!(&through[..], &buf[..n]);
             let mut with_tail = through.clone();
             with_tail.push(tail);
-            let (back, rest) = postcard::take_from_bytes::<RayMsg>(&with_tail).unwrap();
+            let (back, rest) =
+                postcard::take_from_bytes::<RayMsg>(&with_tail).map_err(|_| fail("postcard read no ray"))?;
             proptest::prop_assert_eq!(back, r);
             proptest::prop_assert_eq!(rest, &[tail][..]);
             proptest::prop_assert!(postcard::from_bytes::<RayMsg>(&through[..n - 1]).is_err());

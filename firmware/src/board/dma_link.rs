@@ -87,7 +87,7 @@ impl DmaLink {
     fn written(&self, rx: Dma, read: u32) -> u32 {
         loop {
             let laps = self.laps.load(Ordering::Relaxed);
-            let left = rx.stream().ndtr().read().ndt().bits();
+            let left = rx.stream.ndtr().read().ndt().bits();
             // A lap counted between the two reads: look again.
             if self.laps.load(Ordering::Relaxed) == laps {
                 break circular_position(laps, left, RX_LEN as u32, read);
@@ -114,7 +114,7 @@ impl DmaLink {
         self.in_flight.store(run, Ordering::Relaxed);
         let start = self.tx.get().cast::<u8>().wrapping_add(at as usize) as u32;
         tx.clear();
-        let st = tx.stream();
+        let st = tx.stream;
         // SAFETY: the address is inside `tx`, which lives for ever, and the
         // run lies in it (`run <= TX_LEN - at`).
         st.m0ar().write(|w| unsafe { w.m0a().bits(start) });
@@ -149,11 +149,17 @@ impl DmaLink {
         if got & (flags::TRANSFER_COMPLETE | flags::TRANSFER_ERROR) != 0 {
             self.laps.store(self.laps.load(Ordering::Relaxed).wrapping_add(1), Ordering::Relaxed);
         }
-        let st = rx.stream();
+        let st = rx.stream;
         if st.cr().read().en().is_disabled() {
             st.ndtr().write(|w| w.ndt().set(RX_LEN as u16));
             st.cr().modify(|_, w| w.en().enabled());
         }
+    }
+}
+
+impl core::fmt::Debug for DmaLink {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("DmaLink").field("laps", &self.laps).field("read", &self.read).finish()
     }
 }
 
@@ -189,11 +195,6 @@ impl Dma {
         Some(Self { block, stream, plan })
     }
 
-    #[inline(always)]
-    fn stream(&self) -> &'static dma1::ST {
-        self.stream
-    }
-
     /// Reads and clears the stream's flags; returns them at shift 0.
     #[inline(always)]
     fn take_flags(&self) -> u32 {
@@ -217,8 +218,8 @@ impl Dma {
     /// Stops the stream and waits until it has (RM0430: EN reads 0 before
     /// the stream may be configured).
     fn stop(&self) {
-        self.stream().cr().modify(|_, w| w.en().disabled());
-        while self.stream().cr().read().en().is_enabled() {}
+        self.stream.cr().modify(|_, w| w.en().disabled());
+        while self.stream.cr().read().en().is_enabled() {}
         self.clear();
     }
 }
@@ -237,12 +238,6 @@ pub struct DmaPort {
     lost: u32,
 }
 
-impl core::fmt::Debug for DmaLink {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("DmaLink").field("laps", &self.laps).field("read", &self.read).finish()
-    }
-}
-
 impl DmaPort {
     /// Configures `streams` for the U(S)ART whose data register is at `dr`
     /// and starts receiving; the U(S)ART's DMA requests are then to be
@@ -252,21 +247,21 @@ impl DmaPort {
         for (dma, channel) in [(rx, streams.rx.channel), (tx, streams.tx.channel)] {
             dma.stop();
             // SAFETY: the data register of a U(S)ART, a fixed address.
-            dma.stream().par().write(|w| unsafe { w.pa().bits(dr) });
-            dma.stream().cr().write(|w| {
+            dma.stream.par().write(|w| unsafe { w.pa().bits(dr) });
+            dma.stream.cr().write(|w| {
                 let w = w.chsel().set(channel).msize().bits8().psize().bits8().minc().incremented();
                 w.tcie().enabled().teie().enabled()
             });
         }
         let ring = link.rx.get().cast::<u8>() as u32;
-        let st = rx.stream();
+        let st = rx.stream;
         // SAFETY: `rx` is the link's for ever, RX_LEN bytes.
         st.m0ar().write(|w| unsafe { w.m0a().bits(ring) });
         st.ndtr().write(|w| w.ndt().set(RX_LEN as u16));
         // Receiving must not fall behind the line: high priority.
         st.cr().modify(|_, w| w.pl().high().circ().enabled().dir().peripheral_to_memory());
         st.cr().modify(|_, w| w.en().enabled());
-        tx.stream().cr().modify(|_, w| w.pl().medium().dir().memory_to_peripheral());
+        tx.stream.cr().modify(|_, w| w.pl().medium().dir().memory_to_peripheral());
         Some(Self { link, rx, tx, ready: 0, lost: 0 })
     }
 

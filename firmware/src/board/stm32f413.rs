@@ -228,6 +228,18 @@ impl Uart {
         Self { regs, bytes: Bytes::Interrupt(rings), lost_taken: 0 }
     }
 
+    /// Neighbour link `link`'s U(S)ART: moved by DMA where the image has
+    /// it, else by interrupt through the link's rings.
+    fn neighbour(regs: Regs, brr: Brr, link: usize) -> Self {
+        #[cfg(dma_links)]
+        return Self::with_dma(regs, brr, link);
+        #[cfg(not(dma_links))]
+        {
+            let Some(rings) = RINGS.get(link + 1) else { exit(false) };
+            Self::new(regs, brr, rings)
+        }
+    }
+
     /// Sets the rate, starts the DMA streams of neighbour link `link` and
     /// turns on the U(S)ART's DMA requests, transmitter and receiver. Its
     /// receive interrupt is on only while the loop sleeps ([`sleep`]). The
@@ -643,19 +655,17 @@ pub fn init() -> Parts {
         (Regs::Usart(keep(dp.USART6)), NEIGHBOUR_APB2),
         (Regs::Uart(keep(dp.UART7)), NEIGHBOUR_APB1),
     ];
-    #[cfg(not(dma_links))]
-    let neighbours = {
-        let mut rings = RINGS.iter().skip(1);
-        regs.map(|(r, brr)| Uart::new(r, brr, rings.next().unwrap_or(&RINGS[0])))
-    };
     #[cfg(dma_links)]
-    let neighbours = {
+    {
         // The streams are DMA1's and DMA2's, which are taken here for good.
         let (_dma1, _dma2) = (keep(dp.DMA1), keep(dp.DMA2));
         rcc.ahb1enr().modify(|_, w| w.dma1en().set_bit().dma2en().set_bit());
-        let mut link = 0..;
-        regs.map(|(r, brr)| Uart::with_dma(r, brr, link.next().unwrap_or(0)))
-    };
+    }
+    let mut link = 0;
+    let neighbours = regs.map(|(r, brr)| {
+        link += 1;
+        Uart::neighbour(r, brr, link - 1)
+    });
     let lights = Lights::new(Led::new(b, LD1_GREEN), Led::new(b, LD3_RED));
     let info = board_info(core);
     Parts { host, neighbours, clock: Timer::start(keep(dp.TIM2), timer_hz(&info)), info, lights }
