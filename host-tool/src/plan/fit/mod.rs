@@ -8,9 +8,11 @@ pub mod floor;
 mod planes;
 mod price;
 mod rows;
+mod sums;
 
 pub use planes::bottleneck_cuts;
 use planes::plane_costs;
+use rows::RowCache;
 pub use rows::{RowProfile, row_cuts};
 
 use link_proto::Boundaries;
@@ -18,6 +20,7 @@ use link_proto::Boundaries;
 use crate::error::{HostError, input};
 use crate::plan::cost_map::CostMap;
 use crate::plan::partition::Partition;
+use sums::MapSums;
 
 impl Partition {
     /// A partition fitted to a cost map: the one whose busiest node pays
@@ -62,7 +65,9 @@ impl Partition {
             }
             (p, best) = (next, busiest);
         }
-        let whole = p.refine(map, most);
+        // Priced once for every start: the sums, and the rows met so far.
+        let (sums, mut cache) = (MapSums::new(map), RowCache::default());
+        let whole = p.refine(map, (&sums, &mut cache), most);
         if most < Boundaries::StaggeredColumns {
             return Ok(p);
         }
@@ -74,7 +79,7 @@ impl Partition {
         for start in [Some(p.slabs_alike()), Some(p.slabs_on_their_own(&cells)), exact].into_iter().flatten()
         {
             let mut jagged = start;
-            let s = jagged.refine(map, most);
+            let s = jagged.refine(map, (&sums, &mut cache), most);
             if s < best.0 {
                 best = (s, jagged);
             }
@@ -116,8 +121,8 @@ impl Partition {
     /// Moves single planes across the driving axis by a cube (a slab's own
     /// where slabs cut their columns), rows re-cut, while that lowers the
     /// busiest node's cost (ties: the sum of squares); returns the score.
-    fn refine(&mut self, map: &CostMap, most: Boundaries) -> Score {
-        let mut best = self.cut_rows(map, most);
+    fn refine(&mut self, map: &CostMap, (sums, cache): (&MapSums, &mut RowCache), most: Boundaries) -> Score {
+        let mut best = self.cut_rows(map, sums, cache, most);
         // Each accepted move lowers the score, so this ends; the cap bounds the time.
         for _ in 0..4 * usize::from(map.grid.iter().copied().max().unwrap_or(1)) {
             let mut improved = false;
@@ -125,7 +130,7 @@ impl Partition {
                 for step in [-1, 1] {
                     let mut next = self.clone();
                     if next.move_plane(plane, step) {
-                        let s = next.cut_rows(map, most);
+                        let s = next.cut_rows(map, sums, cache, most);
                         if s < best {
                             (*self, best) = (next, s);
                             improved = true;
@@ -174,20 +179,19 @@ impl Partition {
     /// Cuts the rows along the driving axis, each on its own (staggered, as
     /// sliding leaves them, if `most` allows) or all alike (no ray forwarded),
     /// whichever leaves the busiest node paying less; returns that score.
-    fn cut_rows(&mut self, map: &CostMap, most: Boundaries) -> Score {
+    fn cut_rows(&mut self, map: &CostMap, sums: &MapSums, cache: &mut RowCache, most: Boundaries) -> Score {
         let d = usize::from(self.driving_axis);
         let parts = usize::from(self.array[d]);
-        let rows: Vec<RowProfile> = (0..self.len() / parts).map(|row| self.row_profile(map, row)).collect();
+        let (rows, own) = cache.rows(self, sums);
         let mut alike = Self { row_cuts: None, ..self.clone() };
         alike.cuts[d] = row_cuts(&rows, parts);
-        let own = rows.iter().map(|r| row_cuts(std::slice::from_ref(r), parts)).collect();
         let staggered = Self { row_cuts: Some(own), ..self.clone() };
-        let a = score(&alike.node_costs(map));
+        let a = score(&alike.node_costs_summed(map, sums));
         if most == Boundaries::Whole {
             *self = alike;
             return a;
         }
-        let s = score(&staggered.node_costs(map));
+        let s = score(&staggered.node_costs_summed(map, sums));
         if s < a {
             *self = staggered;
             s
@@ -339,7 +343,9 @@ mod tests {
             for y in 1..16 {
                 let mut p = Partition::even(grid, [2, 2, 2], 2).unwrap();
                 (p.cuts[0][1], p.cuts[1][1]) = (x, y);
-                whole = whole.min(p.cut_rows(&map, Boundaries::StaggeredRows).0);
+                let sums = super::MapSums::new(&map);
+                whole =
+                    whole.min(p.cut_rows(&map, &sums, &mut Default::default(), Boundaries::StaggeredRows).0);
             }
         }
         let slabs = fitted.slab_cuts.as_ref().expect("columns cut per slab");

@@ -1,10 +1,13 @@
 //! Rows of nodes along the driving axis: what each layer of cubes and each
 //! cut costs a row, and the exact cut of rows by dynamic programming.
 
+use std::collections::HashMap;
+
 use crate::plan::cost_map::CostMap;
 use crate::plan::partition::Partition;
 
 use super::floor;
+use super::sums::{BoxSums, MapSums};
 
 impl Partition {
     /// Per row of nodes along the driving axis, what it pays before it is cut
@@ -12,7 +15,10 @@ impl Partition {
     /// cut only adds to it.
     pub fn row_loads(&self, map: &CostMap) -> Vec<u64> {
         let parts = usize::from(self.array[usize::from(self.driving_axis)]);
-        (0..self.len() / parts).map(|row| self.row_profile(map, row).layers.iter().sum()).collect()
+        let sums = MapSums::new(map);
+        (0..self.len() / parts)
+            .map(|row| self.row_profile(map.grid, &sums, row).layers.iter().sum())
+            .collect()
     }
 
     /// The cubes along `axis` (one across the driving axis) that row `row`
@@ -31,43 +37,75 @@ impl Partition {
     /// the driving axis, its cubes and its crossings of the row's side faces;
     /// per plane `k` between layers `k - 1` and `k`, what each side of a cut
     /// there pays (`0` at the row's ends).
-    pub(super) fn row_profile(&self, map: &CostMap, row: usize) -> RowProfile {
+    pub(super) fn row_profile(&self, grid: [u16; 3], sums: &MapSums, row: usize) -> RowProfile {
         let d = usize::from(self.driving_axis);
         let [a0, a1] = self.row_axes();
-        let n = usize::from(map.grid[d]);
-        let (mut layers, mut planes) = (vec![0u64; n], vec![0u64; n + 1]);
-        let ((lo0, hi0), (lo1, hi1)) = (self.row_span(row, a0), self.row_span(row, a1));
-        let at = |c0: u16, c1: u16, k: usize| {
-            let mut cell = [0i32; 3];
-            (cell[a0], cell[a1], cell[d]) = (i32::from(c0), i32::from(c1), k as i32);
-            map.index(cell)
+        let g = grid.map(usize::from);
+        let n = g[d];
+        let span = |a: usize| {
+            let (lo, hi) = self.row_span(row, a);
+            (usize::from(lo), usize::from(hi))
         };
-        let face = |a: usize, i: Option<usize>| i.map_or(0, |i| map.face(a, i));
-        for c1 in lo1..hi1 {
-            for c0 in lo0..hi0 {
-                for k in 0..n {
-                    let i = at(c0, c1, k);
-                    let mut sum = i.map_or(0, |i| map.cell(i));
-                    if c0 == lo0 && lo0 > 0 {
-                        sum += face(a0, at(c0 - 1, c1, k));
-                    }
-                    if c0 + 1 == hi0 && hi0 < map.grid[a0] {
-                        sum += face(a0, i);
-                    }
-                    if c1 == lo1 && lo1 > 0 {
-                        sum += face(a1, at(c0, c1 - 1, k));
-                    }
-                    if c1 + 1 == hi1 && hi1 < map.grid[a1] {
-                        sum += face(a1, i);
-                    }
-                    layers[k] += sum;
-                    if k + 1 < n {
-                        planes[k + 1] += face(d, i);
-                    }
+        let ((lo0, hi0), (lo1, hi1)) = (span(a0), span(a1));
+        // The sum of `s` over the row's cubes in layer `k`, with its span
+        // along `a` replaced by `along`.
+        let layer = |s: &BoxSums, k: usize, a: Option<(usize, (usize, usize))>| {
+            let (mut lo, mut hi) = ([0; 3], [0; 3]);
+            (lo[a0], hi[a0], lo[a1], hi[a1], lo[d], hi[d]) = (lo0, hi0, lo1, hi1, k, k + 1);
+            if let Some((a, (l, h))) = a {
+                (lo[a], hi[a]) = (l, h);
+            }
+            s.sum(lo, hi)
+        };
+        let (mut layers, mut planes) = (vec![0u64; n], vec![0u64; n + 1]);
+        for k in 0..n {
+            let mut sum = layer(&sums.cells, k, None);
+            // The row's side faces: crossings are kept at the lower cube.
+            for (a, lo, hi) in [(a0, lo0, hi0), (a1, lo1, hi1)] {
+                if lo > 0 {
+                    sum += layer(&sums.faces[a], k, Some((a, (lo - 1, lo))));
                 }
+                if hi < g[a] {
+                    sum += layer(&sums.faces[a], k, Some((a, (hi - 1, hi))));
+                }
+            }
+            layers[k] = sum;
+            if k + 1 < n {
+                planes[k + 1] = layer(&sums.faces[d], k, None);
             }
         }
         RowProfile { layers, planes }
+    }
+}
+
+/// Rows already profiled and cut on their own, by the rectangle they span
+/// across the driving axis: a row's profile and its own cuts depend on
+/// nothing else, and the local search moves one plane at a time, so most
+/// rows of a candidate were met before.
+#[derive(Debug, Default)]
+pub(super) struct RowCache {
+    rows: HashMap<[u16; 4], (RowProfile, Vec<u16>)>,
+}
+
+impl RowCache {
+    /// Every row of `p` in [`Partition::row_of`] order: its profile under
+    /// `sums`, and its own cuts into `parts`.
+    pub(super) fn rows(&mut self, p: &Partition, sums: &MapSums) -> (Vec<RowProfile>, Vec<Vec<u16>>) {
+        let d = usize::from(p.driving_axis);
+        let parts = usize::from(p.array[d]);
+        let [a0, a1] = p.row_axes();
+        let grid = std::array::from_fn(|a| p.cuts[a].last().copied().unwrap_or(0));
+        (0..p.len() / parts.max(1))
+            .map(|row| {
+                let ((lo0, hi0), (lo1, hi1)) = (p.row_span(row, a0), p.row_span(row, a1));
+                let (profile, cuts) = self.rows.entry([lo0, hi0, lo1, hi1]).or_insert_with(|| {
+                    let profile = p.row_profile(grid, sums, row);
+                    let cuts = row_cuts(std::slice::from_ref(&profile), parts);
+                    (profile, cuts)
+                });
+                (profile.clone(), cuts.clone())
+            })
+            .unzip()
     }
 }
 
@@ -113,4 +151,90 @@ pub fn row_cuts(rows: &[RowProfile], parts: usize) -> Vec<u16> {
     let cost: Vec<Vec<u64>> =
         (0..=n).map(|i| (0..=n).map(|j| if i < j { part(i, j) } else { 0 }).collect()).collect();
     floor::least_busiest(n, parts, |i, j| cost[i][j]).1
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::super::sums::MapSums;
+    use super::RowProfile;
+    use crate::plan::cost_map::CostMap;
+    use crate::plan::partition::Partition;
+
+    /// A row's profile found the plain way, a cube at a time.
+    fn walked(p: &Partition, map: &CostMap, row: usize) -> RowProfile {
+        let d = usize::from(p.driving_axis);
+        let [a0, a1] = p.row_axes();
+        let n = usize::from(map.grid[d]);
+        let (mut layers, mut planes) = (vec![0u64; n], vec![0u64; n + 1]);
+        let ((lo0, hi0), (lo1, hi1)) = (p.row_span(row, a0), p.row_span(row, a1));
+        let at = |c0: u16, c1: u16, k: usize| {
+            let mut cell = [0i32; 3];
+            (cell[a0], cell[a1], cell[d]) = (i32::from(c0), i32::from(c1), k as i32);
+            map.index(cell)
+        };
+        let face = |a: usize, i: Option<usize>| i.map_or(0, |i| map.face(a, i));
+        for c1 in lo1..hi1 {
+            for c0 in lo0..hi0 {
+                for k in 0..n {
+                    let i = at(c0, c1, k);
+                    let mut sum = i.map_or(0, |i| map.cell(i));
+                    if c0 == lo0 && lo0 > 0 {
+                        sum += face(a0, at(c0 - 1, c1, k));
+                    }
+                    if c0 + 1 == hi0 && hi0 < map.grid[a0] {
+                        sum += face(a0, i);
+                    }
+                    if c1 == lo1 && lo1 > 0 {
+                        sum += face(a1, at(c0, c1 - 1, k));
+                    }
+                    if c1 + 1 == hi1 && hi1 < map.grid[a1] {
+                        sum += face(a1, i);
+                    }
+                    layers[k] += sum;
+                    if k + 1 < n {
+                        planes[k + 1] += face(d, i);
+                    }
+                }
+            }
+        }
+        RowProfile { layers, planes }
+    }
+
+    proptest! {
+        #[test]
+        fn row_profiles_by_sums_agree_with_walking_every_cube(
+            grid in prop::array::uniform3(2u16..=6),
+            array in prop::array::uniform3(1u16..=3),
+            d in 0u8..3,
+            cut_at in prop::collection::vec(1u16..6, 6),
+            values in prop::collection::vec(0u64..1000, 1..=200),
+        ) {
+            prop_assume!((0..3).all(|a| array[a] <= grid[a]));
+            let mut p = Partition::even(grid, array, d).unwrap();
+            // Move the inner cuts where `cut_at` says, each kept in order.
+            for a in 0..3 {
+                for i in 1..usize::from(array[a]) {
+                    let (least, most) = (p.cuts[a][i - 1] + 1, grid[a] - (array[a] - i as u16));
+                    p.cuts[a][i] = least + cut_at[(a + i) % cut_at.len()] % (most - least + 1);
+                }
+            }
+            let mut map = CostMap::new(grid);
+            let mut v = values.iter().cycle().copied();
+            for i in 0..map.compute.len() {
+                map.compute[i] = v.next().unwrap();
+                map.messages[i] = v.next().unwrap() / 3;
+                for a in 0..3 {
+                    map.up[a][i] = v.next().unwrap();
+                    map.down[a][i] = v.next().unwrap() / 2;
+                }
+            }
+            let sums = MapSums::new(&map);
+            let rows = p.len() / usize::from(array[usize::from(d)]);
+            for row in 0..rows {
+                prop_assert_eq!(p.row_profile(grid, &sums, row), walked(&p, &map, row));
+            }
+        }
+    }
 }
