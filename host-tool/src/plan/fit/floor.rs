@@ -107,6 +107,37 @@ pub fn least_busiest(len: usize, parts: usize, cost: impl Fn(usize, usize) -> u6
     (best[parts][len], cuts.into_iter().map(|k| k as u16).collect())
 }
 
+/// [`least_busiest`]'s cost alone, for parts that cost `prefix[j] -
+/// prefix[i] + plane[i] + plane[j]` (`prefix` running sums, so not
+/// decreasing; `plane` at least zero): a part can cost no less than its
+/// layers, so the search for a part's start stops once its layers alone
+/// cost as much as the best found. The floor tables this for every
+/// rectangle, and only the cost; the cuts come from [`least_busiest`].
+pub fn least_busiest_cost(prefix: &[u64], plane: &[u64], parts: usize) -> u64 {
+    let len = prefix.len().saturating_sub(1);
+    let parts = parts.clamp(1, len.max(1));
+    let cost = |i: usize, j: usize| prefix[j] - prefix[i] + plane[i] + plane[j];
+    let mut last: Vec<u64> = (0..=len).map(|j| if j == 0 { 0 } else { u64::MAX }).collect();
+    let mut next = vec![u64::MAX; len + 1];
+    for p in 1..=parts {
+        next.fill(u64::MAX);
+        for j in p..=len - (parts - p) {
+            let mut best = u64::MAX;
+            for i in (p - 1..j).rev() {
+                if prefix[j] - prefix[i] >= best {
+                    break;
+                }
+                if last[i] != u64::MAX {
+                    best = best.min(last[i].max(cost(i, j)));
+                }
+            }
+            next[j] = best;
+        }
+        std::mem::swap(&mut last, &mut next);
+    }
+    last[len]
+}
+
 /// For every rectangle across the slab and column axes, the least busiest
 /// node of a row of nodes over it, its cut along the driving axis free.
 struct RowTable {
@@ -220,7 +251,8 @@ impl LayerSums {
         for s1 in s0 + 1..=gs {
             for c0 in 0..gc {
                 for c1 in c0 + 1..=gc {
-                    rows[RowTable::key([gs, gc], 0, s1, c0, c1)] = self.row(parts, [s0, s1, c0, c1]).0;
+                    let (prefix, plane) = self.profile([s0, s1, c0, c1]);
+                    rows[RowTable::key([gs, gc], 0, s1, c0, c1)] = least_busiest_cost(&prefix, &plane, parts);
                 }
             }
         }
@@ -229,8 +261,14 @@ impl LayerSums {
     /// The least busiest node of a row of `parts` nodes over rectangle `r`,
     /// and the row's cuts along the driving axis.
     fn row(&self, parts: usize, r: [usize; 4]) -> (u64, Vec<u16>) {
+        let (prefix, plane) = self.profile(r);
+        least_busiest(self.g[2], parts, |i, j| prefix[j] - prefix[i] + plane[i] + plane[j])
+    }
+
+    /// A row over rectangle `r`: `prefix[k]`, what layers `0..k` cost;
+    /// `plane[k]`, what each side of a cut at `k` pays (none at the ends).
+    fn profile(&self, r: [usize; 4]) -> (Vec<u64>, Vec<u64>) {
         let [gs, _, gd] = self.g;
-        // prefix[k]: layers 0..k; plane[k]: each side of a cut at k (none at the ends).
         let mut prefix = vec![0u64; gd + 1];
         let mut plane = vec![0u64; gd + 1];
         for k in 0..gd {
@@ -239,7 +277,7 @@ impl LayerSums {
                 plane[k + 1] = rectangle(&self.ahead[k], gs + 1, r);
             }
         }
-        least_busiest(gd, parts, |i, j| prefix[j] - prefix[i] + plane[i] + plane[j])
+        (prefix, plane)
     }
 
     /// What layer `k` of a row over rectangle `r` costs its holder: its cubes
@@ -273,7 +311,7 @@ fn rectangle(p: &[u64], w: usize, [s0, s1, c0, c1]: [usize; 4]) -> u64 {
 
 #[cfg(test)]
 mod tests {
-    use super::{floor, least_busiest};
+    use super::{floor, least_busiest, least_busiest_cost};
     use crate::plan::cost_map::CostMap;
     use crate::plan::partition::Partition;
     use proptest::prelude::*;
@@ -375,6 +413,19 @@ mod tests {
             prop_assert_eq!(busiest, found.cost);
             let volume: u64 = (0..p.len()).map(|id| p.bounds(id).volume()).sum();
             prop_assert_eq!(volume, grid.iter().map(|&g| u64::from(g)).product::<u64>());
+        }
+
+        #[test]
+        fn least_busiest_cost_is_least_busiests_cost(
+            layers in prop::collection::vec(0u64..1000, 1..=12),
+            planes in prop::collection::vec(0u64..800, 13),
+            parts in 1usize..=5,
+        ) {
+            let len = layers.len();
+            let prefix: Vec<u64> = std::iter::once(0).chain(layers.iter().scan(0, |s, &l| { *s += l; Some(*s) })).collect();
+            let plane: Vec<u64> = (0..=len).map(|k| if k == 0 || k == len { 0 } else { planes[k] }).collect();
+            let cost = |i: usize, j: usize| prefix[j] - prefix[i] + plane[i] + plane[j];
+            prop_assert_eq!(least_busiest_cost(&prefix, &plane, parts), least_busiest(len, parts, cost).0);
         }
 
         #[test]
