@@ -3,6 +3,7 @@
 //! carried from frame to frame, refitted per frame or left even, on several
 //! arrays and under link faults; and nothing lost in any frame.
 
+use host_tool::plan::initial_partition;
 use host_tool::plan::options::{Layout, PROPORTIONAL, RenderOptions};
 use host_tool::results::RenderResult;
 use host_tool::results::history::after_slides;
@@ -12,7 +13,7 @@ use host_tool::session::clock::Cycles;
 use host_tool::session::sequence::{self, FrameStart, Sequence, SequenceFrame};
 use host_tool::session::sim::render_sim;
 use link_proto::{Balance, SlidePolicy};
-use sim_board::Faults;
+use sim_board::{Faults, SimNode};
 
 fn scene() -> Scene {
     let mut s = Scene::random(120, 27, 1.0, [16; 3]).unwrap();
@@ -101,6 +102,20 @@ fn every_frame_equals_its_single_frame_render_whatever_the_array_and_the_start()
         }
         if balance.is_none() && start == FrameStart::Carried {
             assert!(out.iter().all(|f| f.result.partition == out[0].result.partition));
+        }
+        if layout == Layout::Preview {
+            // Each frame is planned while the one before renders: the plan
+            // must be its own camera's, not a neighbour's.
+            let own = |k: u32| {
+                initial_partition(&ORBIT.frame(&s, k, frames).unwrap(), &opts, SimNode::capacity()).unwrap()
+            };
+            for f in &out {
+                assert_eq!(f.result.partition, own(f.number), "frame {} started on another's plan", f.number);
+            }
+            assert!(
+                out.windows(2).any(|p| p[0].result.partition != p[1].result.partition),
+                "every frame's fit is the same: the check above would not see a frame on another's plan"
+            );
         }
     }
     assert!(carried_slid, "no case carried slid boundaries into a frame: the test would not see them");

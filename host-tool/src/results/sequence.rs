@@ -66,6 +66,9 @@ pub struct FrameRow {
     pub loaded: bool,
     /// Host milliseconds spent planning it.
     pub planning_ms: f64,
+    /// Host milliseconds the sequence waited for its plan (planned frames
+    /// are planned while the frame before renders).
+    pub plan_wait_ms: f64,
     /// Frames the nodes resent, and took damaged, as they told the host.
     pub link_troubles: PortHealth,
 }
@@ -86,6 +89,7 @@ impl FrameRow {
             rays: r.frame.rays_terminated,
             loaded: f.loaded,
             planning_ms: f.planning.as_secs_f64() * 1e3,
+            plan_wait_ms: f.plan_wait.as_secs_f64() * 1e3,
             link_troubles: link_troubles(r),
         }
     }
@@ -155,12 +159,12 @@ impl FrameSink for SequenceWriter {
 pub fn frames_csv(rows: &[FrameRow], unit: &str) -> String {
     let mut s = format!(
         "# makespan in {unit}: from the frame's start to its last retirement (frame 0's includes sending the scene)\n\
-         frame,makespan,imbalance,slides,messages,neighbour_bytes,host_bytes,rays,loaded,planning_ms,resent,damaged,lost\n"
+         frame,makespan,imbalance,slides,messages,neighbour_bytes,host_bytes,rays,loaded,planning_ms,plan_wait_ms,resent,damaged,lost\n"
     );
     for r in rows {
         let messages = r.messages.map_or(String::new(), |m| m.to_string());
         s += &format!(
-            "{},{},{:.4},{},{messages},{},{},{},{},{:.1},{},{},{}\n",
+            "{},{},{:.4},{},{messages},{},{},{},{},{:.1},{:.1},{},{},{}\n",
             r.frame,
             r.makespan,
             r.imbalance,
@@ -170,6 +174,7 @@ pub fn frames_csv(rows: &[FrameRow], unit: &str) -> String {
             r.rays,
             u8::from(r.loaded),
             r.planning_ms,
+            r.plan_wait_ms,
             r.link_troubles.resent,
             r.link_troubles.damaged,
             r.link_troubles.lost

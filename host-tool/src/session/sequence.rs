@@ -13,6 +13,7 @@
 //! the wire's resolution sends nothing); the subregions stay carried or
 //! planned as above.
 
+use std::thread::ScopedJoinHandle;
 use std::time::{Duration, Instant};
 
 use crate::error::HostError;
@@ -24,7 +25,7 @@ use crate::results::history::after_slides;
 use crate::scene::Scene;
 use crate::scene::path::CameraPath;
 use crate::session::transport::Transport;
-use link_proto::SphereMsg;
+use link_proto::{Capacity, SphereMsg};
 
 /// Where each frame after the first starts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -58,8 +59,14 @@ pub struct SequenceFrame<T> {
     /// Whether the scene was sent for this frame (the first, planned frames
     /// whose subregions changed, and frames where spheres moved).
     pub loaded: bool,
-    /// Host time spent planning the frame (the preview, with `--layout preview`).
+    /// Host time spent planning the frame (the preview and the fit, with
+    /// `--layout preview`).
     pub planning: Duration,
+    /// Host time the sequence waited for the frame's plan: all of
+    /// [`Self::planning`] for the first frame and for carried ones, and only
+    /// what the frame before did not cover for frames planned afresh, which
+    /// are planned while the frame before renders.
+    pub plan_wait: Duration,
 }
 
 /// What takes each frame of a sequence as it is done: generic over the
@@ -69,9 +76,40 @@ pub trait FrameSink {
     fn take<T: crate::session::clock::Clock>(&mut self, f: SequenceFrame<T>) -> Result<(), HostError>;
 }
 
+/// A frame's plan, its scene as the frame sees it, and the host time they took.
+struct Planned {
+    at: Scene,
+    plan: Plan,
+    spent: Duration,
+}
+
+/// Plans frame `k`: on `carried` if given, else as the options' layout says.
+fn plan_frame(
+    scene: &Scene,
+    opts: &RenderOptions,
+    sequence: &Sequence,
+    k: u32,
+    carried: Option<Partition>,
+    capacity: Capacity,
+) -> Result<Planned, HostError> {
+    let started = Instant::now();
+    let at = sequence.path.frame(scene, k, sequence.frames)?;
+    let partition = match carried {
+        Some(p) => p,
+        None => initial_partition(&at, opts, capacity)?,
+    };
+    let plan = Plan::with_partition(&at, opts, partition, capacity)?;
+    Ok(Planned { at, plan, spent: started.elapsed() })
+}
+
 /// Renders `sequence` of `scene` on `transport`, handing each frame to
 /// `each` as soon as it is done (so a long sequence is never held in
 /// memory); stops at the first error, of a frame or of `each`.
+///
+/// A frame planned afresh does not depend on the frame before, so it is
+/// planned on another thread while that frame renders: a preview fit costs
+/// the sequence only what it takes beyond the frame before. Its error, if
+/// any, is reported where it was before, after the frame before is handed on.
 pub fn run<T: Transport>(
     transport: &mut T,
     scene: &Scene,
@@ -84,25 +122,38 @@ pub fn run<T: Transport>(
     // spheres they were sent.
     let mut held: Option<Partition> = None;
     let mut sent: Option<Vec<SphereMsg>> = None;
-    for k in 0..sequence.frames {
-        let planning = Instant::now();
-        let at = sequence.path.frame(scene, k, sequence.frames)?;
-        let partition = match (&held, sequence.start) {
-            (Some(p), FrameStart::Carried) => p.clone(),
-            _ => initial_partition(&at, opts, capacity)?,
-        };
-        let plan = Plan::with_partition(&at, opts, partition, capacity)?;
-        let planning = planning.elapsed();
-        let spheres = at.sphere_msgs();
-        let loaded = held.as_ref() != Some(&plan.partition) || sent.as_ref() != Some(&spheres);
-        if loaded {
-            super::load(transport, &at, &plan);
-            sent = Some(spheres);
+    std::thread::scope(|scope| {
+        let mut ahead = None;
+        for k in 0..sequence.frames {
+            let waiting = Instant::now();
+            let planned = match ahead.take() {
+                Some(planning) => join(planning)?,
+                None => {
+                    let carried = held.clone().filter(|_| sequence.start == FrameStart::Carried);
+                    plan_frame(scene, opts, sequence, k, carried, capacity)?
+                }
+            };
+            let plan_wait = waiting.elapsed();
+            if sequence.start == FrameStart::Planned && k + 1 < sequence.frames {
+                ahead = Some(scope.spawn(move || plan_frame(scene, opts, sequence, k + 1, None, capacity)));
+            }
+            let Planned { at, plan, spent } = planned;
+            let spheres = at.sphere_msgs();
+            let loaded = held.as_ref() != Some(&plan.partition) || sent.as_ref() != Some(&spheres);
+            if loaded {
+                super::load(transport, &at, &plan);
+                sent = Some(spheres);
+            }
+            let result = super::frame(transport, &plan, k)
+                .map_err(|e| if sequence.frames > 1 { e.context(&format!("frame {k}")) } else { e })?;
+            held = Some(after_slides(&plan.partition, &result.frame.slides));
+            each(SequenceFrame { number: k, result, loaded, planning: spent, plan_wait })?;
         }
-        let result = super::frame(transport, &plan, k)
-            .map_err(|e| if sequence.frames > 1 { e.context(&format!("frame {k}")) } else { e })?;
-        held = Some(after_slides(&plan.partition, &result.frame.slides));
-        each(SequenceFrame { number: k, result, loaded, planning })?;
-    }
-    Ok(())
+        Ok(())
+    })
+}
+
+/// The plan a thread made; a panic there goes on here, as if planned here.
+fn join(planning: ScopedJoinHandle<'_, Result<Planned, HostError>>) -> Result<Planned, HostError> {
+    planning.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic))
 }
