@@ -139,6 +139,12 @@ impl AnimationRun {
         self.frames.iter().map(|r| r.planning_ms).sum::<f64>() / 1e3
     }
 
+    /// Host seconds the sequence waited for its plans (a frame planned
+    /// afresh is planned while the frame before renders).
+    pub fn plan_wait_s(&self) -> f64 {
+        self.frames.iter().map(|r| r.plan_wait_ms).sum::<f64>() / 1e3
+    }
+
     /// The first frame from which the imbalance stays within 5% of the
     /// steady mean.
     pub fn settled_at(&self, from: u32) -> Option<u32> {
@@ -222,14 +228,15 @@ pub fn row_bound<T>(r: &RenderResult<T>) -> f64 {
 }
 
 fn csv(runs: &[AnimationRun]) -> String {
-    let mut s =
-        String::from("array,mode,frame,makespan,imbalance,row_bound,slides,messages,loaded,planning_ms\n");
+    let mut s = String::from(
+        "array,mode,frame,makespan,imbalance,row_bound,slides,messages,loaded,planning_ms,plan_wait_ms\n",
+    );
     for run in runs {
         let [x, y, z] = run.array;
         for (r, bound) in run.frames.iter().zip(&run.row_bounds) {
             let _ = writeln!(
                 s,
-                "{x}x{y}x{z},{},{},{},{:.4},{bound:.4},{},{},{},{:.1}",
+                "{x}x{y}x{z},{},{},{},{:.4},{bound:.4},{},{},{},{:.1},{:.1}",
                 run.mode.name(),
                 r.frame,
                 r.makespan,
@@ -237,7 +244,8 @@ fn csv(runs: &[AnimationRun]) -> String {
                 r.slides,
                 r.messages.unwrap_or(0),
                 u8::from(r.loaded),
-                r.planning_ms
+                r.planning_ms,
+                r.plan_wait_ms
             );
         }
     }
@@ -254,7 +262,9 @@ pub fn markdown(cfg: &AnimationConfig, runs: &[AnimationRun]) -> String {
          Row bound: the least imbalance sliding along the driving axis could reach with the \
          frame's loads (each row of nodes along it at its own mean). Settled: the first frame \
          from which the imbalance stays within 5% of its steady mean. Planning: host seconds \
-         (the preview fit renders a preview per frame).\n\n",
+         (the preview fit renders a preview and fits it per frame); waited: the part of them the \
+         sequence waited for (a frame planned afresh is planned while the frame before renders; \
+         two sequences run at a time, so they share the cores).\n\n",
         cfg.degrees,
         cfg.frames,
         o.size[0],
@@ -263,9 +273,9 @@ pub fn markdown(cfg: &AnimationConfig, runs: &[AnimationRun]) -> String {
         cfg.frames.saturating_sub(1),
     );
     s.push_str(
-        "| array | mode | steady imbalance | worst steady | row bound | steady makespan (cycles) | all frames (cycles) | settled at frame | slides | planning (s) |\n",
+        "| array | mode | steady imbalance | worst steady | row bound | steady makespan (cycles) | all frames (cycles) | settled at frame | slides | planning (s) | waited (s) |\n",
     );
-    s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
     for run in runs {
         let [x, y, z] = run.array;
         let worst = run.steady(from).map(|r| r.imbalance).fold(0.0, f64::max);
@@ -275,14 +285,15 @@ pub fn markdown(cfg: &AnimationConfig, runs: &[AnimationRun]) -> String {
         };
         let _ = writeln!(
             s,
-            "| {x}x{y}x{z} | {} | {:.3} | {worst:.3} | {:.3} | {:.3e} | {:.3e} | {settled} | {} | {:.1} |",
+            "| {x}x{y}x{z} | {} | {:.3} | {worst:.3} | {:.3} | {:.3e} | {:.3e} | {settled} | {} | {:.1} | {:.1} |",
             run.mode.name(),
             run.steady_imbalance(from),
             run.steady_row_bound(from),
             run.steady_makespan(from),
             run.total_makespan() as f64,
             run.frames.iter().map(|r| r.slides).sum::<usize>(),
-            run.planning_s()
+            run.planning_s(),
+            run.plan_wait_s()
         );
     }
     s
