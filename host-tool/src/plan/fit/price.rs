@@ -2,18 +2,34 @@
 //! hop by hop as the nodes route it.
 
 use node_fw::CubeBox;
-use node_fw::link::Port;
 
-use super::sums::MapSums;
+use super::sums::{BoxSums, MapSums};
 use crate::plan::cost_map::CostMap;
 use crate::plan::partition::Partition;
 
-/// Which face of a node's box, across an axis: the ray crossing it leaves
-/// the box upward or downward.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Side {
-    Upper,
-    Lower,
+/// A box of cubes, `lo <= c < hi` on every axis.
+type Cubes = ([usize; 3], [usize; 3]);
+
+/// The rays leaving one face of a node's box, routed together: the cubes
+/// beyond the face they are bound for, and where their charges are kept.
+struct Crossing<'a> {
+    /// The charges: [`CostMap::up`] or [`CostMap::down`] along `axis`.
+    charges: &'a BoxSums,
+    axis: usize,
+    /// The charges are kept at the cube below the face: for rays leaving
+    /// upward, a cube before the one they are bound for.
+    upward: bool,
+}
+
+impl Crossing<'_> {
+    /// What the rays bound for `cubes` charge each side of a hop.
+    fn price(&self, (mut lo, mut hi): Cubes) -> u64 {
+        if self.upward {
+            lo[self.axis] -= 1;
+            hi[self.axis] -= 1;
+        }
+        self.charges.sum(lo, hi)
+    }
 }
 
 impl Partition {
@@ -29,108 +45,70 @@ impl Partition {
     /// [`Self::node_costs`] with `map`'s sums made once for many partitions.
     ///
     /// Every crossing lies on one face of the box it leaves: a node pays its
-    /// cubes, and each face of its box inside the grid charges the rays
-    /// leaving through it. Where the neighbour across the face holds the cube
-    /// beyond, a ray takes one hop ([`node_fw::route::toward`] sends it
-    /// across the face, as the cube is inside the box on the other two axes),
-    /// so that part of the face is one sum; only the rest is routed a cube
-    /// at a time.
+    /// cubes, and each face of its box inside the grid sends the rays leaving
+    /// through it on their way, all together ([`Self::route_box`]).
     pub(super) fn node_costs_summed(&self, map: &CostMap, sums: &MapSums) -> Vec<u64> {
         let boxes: Vec<CubeBox> = (0..self.len()).map(|id| self.bounds(id)).collect();
         let mut cost: Vec<u64> = boxes.iter().map(|b| sums.cells.sum(lo(b), hi(b))).collect();
-        for id in 0..boxes.len() {
+        let grid = map.grid.map(usize::from);
+        for (id, b) in boxes.iter().enumerate() {
             for axis in 0..3 {
-                for side in [Side::Upper, Side::Lower] {
-                    self.charge_face(map, sums, &boxes, &mut cost, (id, axis, side));
+                let (lo, hi) = (lo(b), hi(b));
+                if hi[axis] < grid[axis] {
+                    let mut beyond = (lo, hi);
+                    (beyond.0[axis], beyond.1[axis]) = (hi[axis], hi[axis] + 1);
+                    let up = Crossing { charges: &sums.up[axis], axis, upward: true };
+                    self.route_box(&boxes, &mut cost, id, beyond, &up);
+                }
+                if lo[axis] > 0 {
+                    let mut beyond = (lo, hi);
+                    (beyond.0[axis], beyond.1[axis]) = (lo[axis] - 1, lo[axis]);
+                    let down = Crossing { charges: &sums.down[axis], axis, upward: false };
+                    self.route_box(&boxes, &mut cost, id, beyond, &down);
                 }
             }
         }
         cost
     }
 
-    /// Charges the rays leaving node `id`'s box across its `side` face along
-    /// `axis`: upward, each face cube's [`CostMap::up`]; downward, the cube
-    /// beyond's [`CostMap::down`] (both are kept at the lower cube).
-    fn charge_face(
-        &self,
-        map: &CostMap,
-        sums: &MapSums,
-        boxes: &[CubeBox],
-        cost: &mut [u64],
-        (id, axis, side): (usize, usize, Side),
-    ) {
-        let b = &boxes[id];
-        let (lo, hi) = (lo(b), hi(b));
-        let upward = side == Side::Upper;
-        if (upward && hi[axis] >= usize::from(map.grid[axis])) || (!upward && lo[axis] == 0) {
-            return;
-        }
-        // The layer of cubes whose entries the face charges: the lower side.
-        let layer = if upward { hi[axis] - 1 } else { lo[axis] - 1 };
-        let charges = if upward { &map.up[axis] } else { &map.down[axis] };
-        let mut one_hop = ([0; 3], [0; 3]);
-        if let Some(n) = self.face_neighbour(id, axis, upward) {
-            let m = &boxes[n];
-            let meets = if upward { m.lo[axis] == b.hi[axis] } else { m.hi[axis] == b.lo[axis] };
-            if meets {
-                let (mut l, mut h) = (lo, hi);
-                for a in (0..3).filter(|&a| a != axis) {
-                    (l[a], h[a]) = (lo[a].max(usize::from(m.lo[a])), hi[a].min(usize::from(m.hi[a])));
-                }
-                (l[axis], h[axis]) = (layer, layer + 1);
-                let sum = if upward { sums.up[axis].sum(l, h) } else { sums.down[axis].sum(l, h) };
-                cost[id] += sum;
-                cost[n] += sum;
-                one_hop = (l, h);
-            }
-        }
-        let whole = (0..3).all(|a| a == axis || (one_hop.0[a] == lo[a] && one_hop.1[a] == hi[a]));
-        if whole {
-            return;
-        }
-        let [e1, e2] = [(axis + 1) % 3, (axis + 2) % 3];
-        let n = map.grid.map(usize::from);
-        for u in lo[e1]..hi[e1] {
-            for v in lo[e2]..hi[e2] {
-                let mut at = [0usize; 3];
-                (at[axis], at[e1], at[e2]) = (layer, u, v);
-                if (0..3).all(|a| at[a] >= one_hop.0[a] && at[a] < one_hop.1[a]) {
-                    continue;
-                }
-                let i = at[0] + n[0] * (at[1] + n[1] * at[2]);
-                let mut beyond = at.map(|c| c as i32);
-                if upward {
-                    beyond[axis] += 1;
-                }
-                self.charge_route(boxes, cost, id, beyond, charges[i]);
-            }
-        }
-    }
-
-    /// The node across node `id`'s `upward` (or lower) face along `axis`.
-    fn face_neighbour(&self, id: usize, axis: usize, upward: bool) -> Option<usize> {
-        let mut c = self.coord(id);
-        c[axis] = if upward { c[axis].checked_add(1)? } else { c[axis].checked_sub(1)? };
-        node_fw::wiring::index_of(c, self.array).map(usize::from)
-    }
-
-    /// Charges `per_side` to both ends of every hop of a ray leaving node
-    /// `from` for `cell`, each hop where that node's box sends it
-    /// ([`node_fw::route::toward`], the nodes' own rule).
-    fn charge_route(&self, boxes: &[CubeBox], cost: &mut [u64], from: usize, cell: [i32; 3], per_side: u64) {
+    /// Charges both ends of every hop of the rays at node `at` bound for
+    /// `cubes`, as the nodes route each ray ([`node_fw::route::toward`]):
+    /// the first axis in routing order on which a cube lies outside the
+    /// node's box decides its port. So the cubes are split by the box's
+    /// bounds on that axis: those below and above hop to the neighbour that
+    /// way, and those within go on to the next axis from the same node.
+    fn route_box(&self, boxes: &[CubeBox], cost: &mut [u64], at: usize, cubes: Cubes, rays: &Crossing<'_>) {
         let d = usize::from(self.driving_axis);
-        let [ax, ay, _] = self.array.map(usize::from);
-        let stride = [1, ax, ax * ay];
-        let mut at = from;
-        // Every hop moves toward the owner, so a route is shorter than the array;
-        // and `cell` is in the grid, so there is a neighbour that way.
-        for _ in 0..self.len() {
-            let Some(port) = node_fw::route::toward(&boxes[at], cell, d) else { break };
-            let axis = port.axis().unwrap_or(0);
-            let id = if port == Port::toward(axis, true) { at + stride[axis] } else { at - stride[axis] };
-            cost[at] += per_side;
-            cost[id] += per_side;
-            at = id;
+        let b = &boxes[at];
+        for axis in [(d + 1) % 3, (d + 2) % 3, d] {
+            let (blo, bhi) = (usize::from(b.lo[axis]), usize::from(b.hi[axis]));
+            let (lo, hi) = (cubes.0[axis], cubes.1[axis]);
+            if lo >= blo && hi <= bhi {
+                continue;
+            }
+            let stride =
+                [1, usize::from(self.array[0]), usize::from(self.array[0]) * usize::from(self.array[1])];
+            let part = |from: usize, to: usize| {
+                let mut p = cubes;
+                (p.0[axis], p.1[axis]) = (from, to);
+                p
+            };
+            for (part, next) in [
+                (part(lo, hi.min(blo)), at.wrapping_sub(stride[axis])),
+                (part(lo.max(bhi), hi), at + stride[axis]),
+            ] {
+                if part.0[axis] < part.1[axis] {
+                    let price = rays.price(part);
+                    cost[at] += price;
+                    cost[next] += price;
+                    self.route_box(boxes, cost, next, part, rays);
+                }
+            }
+            let within = part(lo.max(blo), hi.min(bhi));
+            if within.0[axis] < within.1[axis] {
+                self.route_box(boxes, cost, at, within, rays);
+            }
+            return;
         }
     }
 }
