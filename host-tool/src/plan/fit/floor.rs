@@ -117,19 +117,21 @@ pub fn least_busiest_cost(prefix: &[u64], plane: &[u64], parts: usize) -> u64 {
     let len = prefix.len().saturating_sub(1);
     let parts = parts.clamp(1, len.max(1));
     let cost = |i: usize, j: usize| prefix[j] - prefix[i] + plane[i] + plane[j];
-    let mut last: Vec<u64> = (0..=len).map(|j| if j == 0 { 0 } else { u64::MAX }).collect();
+    // last[j]: the least busiest part of layers 0..j cut into p parts; one
+    // part starts at layer 0.
+    let mut last: Vec<u64> = (0..=len).map(|j| if j == 0 { u64::MAX } else { cost(0, j) }).collect();
     let mut next = vec![u64::MAX; len + 1];
-    for p in 1..=parts {
+    for p in 2..=parts {
         next.fill(u64::MAX);
-        for j in p..=len - (parts - p) {
+        // Each part leaves a layer for every part after it; the last ends the row.
+        let ends = if p == parts { len..=len } else { p..=len - (parts - p) };
+        for j in ends {
             let mut best = u64::MAX;
             for i in (p - 1..j).rev() {
                 if prefix[j] - prefix[i] >= best {
                     break;
                 }
-                if last[i] != u64::MAX {
-                    best = best.min(last[i].max(cost(i, j)));
-                }
+                best = best.min(last[i].max(cost(i, j)));
             }
             next[j] = best;
         }
