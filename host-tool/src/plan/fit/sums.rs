@@ -3,10 +3,9 @@
 //!
 //! The local search prices thousands of candidate partitions of one map; each
 //! used to walk every cube and every face of the grid. With the sums a
-//! candidate costs a few lookups a node, and only the faces where two
-//! neighbours' boxes do not meet square (staggered boundaries) are walked
-//! cube by cube. The sums are exact integers, so every price is the same as
-//! the walk's.
+//! candidate costs a few lookups a node, and the rays leaving a face a few
+//! more for each node they pass (`Partition::node_costs`). The sums are exact
+//! integers, so every price is the same as the walk's.
 
 use crate::plan::cost_map::CostMap;
 
