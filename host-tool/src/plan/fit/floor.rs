@@ -313,6 +313,7 @@ fn rectangle(p: &[u64], w: usize, [s0, s1, c0, c1]: [usize; 4]) -> u64 {
 
 #[cfg(test)]
 mod tests {
+    use super::super::testing::map_of;
     use super::{floor, least_busiest, least_busiest_cost};
     use crate::plan::cost_map::CostMap;
     use crate::plan::partition::Partition;
@@ -371,21 +372,6 @@ mod tests {
             }
         }
         least
-    }
-
-    fn map_of(grid: [u16; 3], values: &[u64]) -> CostMap {
-        let mut map = CostMap::new(grid);
-        let mut v = values.iter().cycle().copied();
-        let cubes = map.compute.len();
-        for i in 0..cubes {
-            map.compute[i] = v.next().unwrap_or(0);
-            map.messages[i] = v.next().unwrap_or(0) / 4;
-            for a in 0..3 {
-                map.up[a][i] = v.next().unwrap_or(0);
-                map.down[a][i] = v.next().unwrap_or(0) / 2;
-            }
-        }
-        map
     }
 
     #[test]

@@ -9,6 +9,8 @@ mod planes;
 mod price;
 mod rows;
 mod sums;
+#[cfg(test)]
+mod testing;
 
 pub use planes::bottleneck_cuts;
 use planes::plane_costs;

@@ -126,6 +126,7 @@ mod tests {
     use node_fw::CubeBox;
     use proptest::prelude::*;
 
+    use super::super::testing::{map_of, partition_of};
     use crate::plan::cost_map::CostMap;
     use crate::plan::partition::Partition;
 
@@ -181,19 +182,6 @@ mod tests {
         cost
     }
 
-    /// Cuts of `len` cubes into `parts` non-empty parts, from `seed`.
-    fn cuts(len: u16, parts: u16, seed: &[u16]) -> Vec<u16> {
-        let mut c = vec![0u16];
-        for i in 1..parts {
-            let least = c[usize::from(i) - 1] + 1;
-            let most = len - (parts - i);
-            let pick = seed.get(usize::from(i)).copied().unwrap_or(0) % (most - least + 1);
-            c.push(least + pick);
-        }
-        c.push(len);
-        c
-    }
-
     proptest! {
         #[test]
         fn node_costs_by_sums_agree_with_walking_every_face(
@@ -205,30 +193,8 @@ mod tests {
             staggered in (any::<bool>(), any::<bool>()),
         ) {
             prop_assume!((0..3).all(|a| array[a] <= grid[a]));
-            let mut p = Partition::even(grid, array, d).unwrap();
-            let mut seed = seeds.iter().cycle();
-            for a in 0..3 {
-                p.cuts[a] = cuts(grid[a], array[a], seed.next().unwrap());
-            }
-            let [s, c] = p.routed_axes();
-            if staggered.0 {
-                p.slab_cuts = Some((0..array[s]).map(|_| cuts(grid[c], array[c], seed.next().unwrap())).collect());
-            }
-            let du = usize::from(d);
-            if staggered.1 {
-                let rows = p.len() / usize::from(array[du]);
-                p.row_cuts = Some((0..rows).map(|_| cuts(grid[du], array[du], seed.next().unwrap())).collect());
-            }
-            let mut map = CostMap::new(grid);
-            let mut v = values.iter().cycle().copied();
-            for i in 0..map.compute.len() {
-                map.compute[i] = v.next().unwrap();
-                map.messages[i] = v.next().unwrap() / 3;
-                for a in 0..3 {
-                    map.up[a][i] = v.next().unwrap();
-                    map.down[a][i] = v.next().unwrap() / 2;
-                }
-            }
+            let p = partition_of(grid, array, d, &seeds, staggered);
+            let map = map_of(grid, &values);
             prop_assert_eq!(p.node_costs(&map), walked(&p, &map));
         }
     }

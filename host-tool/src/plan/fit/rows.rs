@@ -158,6 +158,7 @@ mod tests {
     use proptest::prelude::*;
 
     use super::super::sums::MapSums;
+    use super::super::testing::{map_of, partition_of};
     use super::RowProfile;
     use crate::plan::cost_map::CostMap;
     use crate::plan::partition::Partition;
@@ -208,28 +209,13 @@ mod tests {
             grid in prop::array::uniform3(2u16..=6),
             array in prop::array::uniform3(1u16..=3),
             d in 0u8..3,
-            cut_at in prop::collection::vec(1u16..6, 6),
+            seeds in prop::collection::vec(prop::collection::vec(0u16..100, 4), 40),
             values in prop::collection::vec(0u64..1000, 1..=200),
+            slabs in any::<bool>(),
         ) {
             prop_assume!((0..3).all(|a| array[a] <= grid[a]));
-            let mut p = Partition::even(grid, array, d).unwrap();
-            // Move the inner cuts where `cut_at` says, each kept in order.
-            for a in 0..3 {
-                for i in 1..usize::from(array[a]) {
-                    let (least, most) = (p.cuts[a][i - 1] + 1, grid[a] - (array[a] - i as u16));
-                    p.cuts[a][i] = least + cut_at[(a + i) % cut_at.len()] % (most - least + 1);
-                }
-            }
-            let mut map = CostMap::new(grid);
-            let mut v = values.iter().cycle().copied();
-            for i in 0..map.compute.len() {
-                map.compute[i] = v.next().unwrap();
-                map.messages[i] = v.next().unwrap() / 3;
-                for a in 0..3 {
-                    map.up[a][i] = v.next().unwrap();
-                    map.down[a][i] = v.next().unwrap() / 2;
-                }
-            }
+            let p = partition_of(grid, array, d, &seeds, (slabs, false));
+            let map = map_of(grid, &values);
             let sums = MapSums::new(&map);
             let rows = p.len() / usize::from(array[usize::from(d)]);
             for row in 0..rows {
