@@ -14,7 +14,6 @@ mod testing;
 
 pub use planes::bottleneck_cuts;
 use planes::plane_costs;
-use rows::RowCache;
 pub use rows::{RowProfile, row_cuts};
 
 use link_proto::Boundaries;
@@ -22,7 +21,7 @@ use link_proto::Boundaries;
 use crate::error::{HostError, input};
 use crate::plan::cost_map::CostMap;
 use crate::plan::partition::Partition;
-use sums::MapSums;
+use price::Pricing;
 
 impl Partition {
     /// A partition fitted to a cost map: the one whose busiest node pays
@@ -67,9 +66,8 @@ impl Partition {
             }
             (p, best) = (next, busiest);
         }
-        // Priced once for every start: the sums, and the rows met so far.
-        let (sums, mut cache) = (MapSums::new(map), RowCache::default());
-        let whole = p.refine(map, (&sums, &mut cache), most);
+        let mut pricing = Pricing::new(map);
+        let whole = p.refine(&mut pricing, most);
         if most < Boundaries::StaggeredColumns {
             return Ok(p);
         }
@@ -81,7 +79,7 @@ impl Partition {
         for start in [Some(p.slabs_alike()), Some(p.slabs_on_their_own(&cells)), exact].into_iter().flatten()
         {
             let mut jagged = start;
-            let s = jagged.refine(map, (&sums, &mut cache), most);
+            let s = jagged.refine(&mut pricing, most);
             if s < best.0 {
                 best = (s, jagged);
             }
@@ -123,16 +121,16 @@ impl Partition {
     /// Moves single planes across the driving axis by a cube (a slab's own
     /// where slabs cut their columns), rows re-cut, while that lowers the
     /// busiest node's cost (ties: the sum of squares); returns the score.
-    fn refine(&mut self, map: &CostMap, (sums, cache): (&MapSums, &mut RowCache), most: Boundaries) -> Score {
-        let mut best = self.cut_rows(map, sums, cache, most);
+    fn refine(&mut self, pricing: &mut Pricing<'_>, most: Boundaries) -> Score {
+        let mut best = self.cut_rows(pricing, most);
         // Each accepted move lowers the score, so this ends; the cap bounds the time.
-        for _ in 0..4 * usize::from(map.grid.iter().copied().max().unwrap_or(1)) {
+        for _ in 0..4 * usize::from(pricing.grid().iter().copied().max().unwrap_or(1)) {
             let mut improved = false;
             for plane in self.movable_planes() {
                 for step in [-1, 1] {
                     let mut next = self.clone();
                     if next.move_plane(plane, step) {
-                        let s = next.cut_rows(map, sums, cache, most);
+                        let s = next.cut_rows(pricing, most);
                         if s < best {
                             (*self, best) = (next, s);
                             improved = true;
@@ -181,19 +179,19 @@ impl Partition {
     /// Cuts the rows along the driving axis, each on its own (staggered, as
     /// sliding leaves them, if `most` allows) or all alike (no ray forwarded),
     /// whichever leaves the busiest node paying less; returns that score.
-    fn cut_rows(&mut self, map: &CostMap, sums: &MapSums, cache: &mut RowCache, most: Boundaries) -> Score {
+    fn cut_rows(&mut self, pricing: &mut Pricing<'_>, most: Boundaries) -> Score {
         let d = usize::from(self.driving_axis);
         let parts = usize::from(self.array[d]);
-        let (rows, own) = cache.rows(self, sums);
+        let (rows, own) = pricing.rows(self);
         let mut alike = Self { row_cuts: None, ..self.clone() };
         alike.cuts[d] = row_cuts(&rows, parts);
         let staggered = Self { row_cuts: Some(own), ..self.clone() };
-        let a = score(&alike.node_costs_summed(map, sums));
+        let a = score(&pricing.node_costs(&alike));
         if most == Boundaries::Whole {
             *self = alike;
             return a;
         }
-        let s = score(&staggered.node_costs_summed(map, sums));
+        let s = score(&pricing.node_costs(&staggered));
         if s < a {
             *self = staggered;
             s
@@ -345,9 +343,8 @@ mod tests {
             for y in 1..16 {
                 let mut p = Partition::even(grid, [2, 2, 2], 2).unwrap();
                 (p.cuts[0][1], p.cuts[1][1]) = (x, y);
-                let sums = super::MapSums::new(&map);
-                whole =
-                    whole.min(p.cut_rows(&map, &sums, &mut Default::default(), Boundaries::StaggeredRows).0);
+                let mut pricing = super::Pricing::new(&map);
+                whole = whole.min(p.cut_rows(&mut pricing, Boundaries::StaggeredRows).0);
             }
         }
         let slabs = fitted.slab_cuts.as_ref().expect("columns cut per slab");

@@ -3,6 +3,7 @@
 
 use node_fw::CubeBox;
 
+use super::rows::{RowCache, RowProfile};
 use super::sums::{BoxSums, MapSums};
 use crate::plan::cost_map::CostMap;
 use crate::plan::partition::Partition;
@@ -32,6 +33,36 @@ impl Crossing<'_> {
     }
 }
 
+/// What the fit prices the candidates of one map with: the map's sums, and
+/// the rows met so far.
+pub(super) struct Pricing<'a> {
+    map: &'a CostMap,
+    sums: MapSums,
+    rows: RowCache,
+}
+
+impl<'a> Pricing<'a> {
+    /// Ready to price partitions of `map`.
+    pub(super) fn new(map: &'a CostMap) -> Self {
+        Self { map, sums: MapSums::new(map), rows: RowCache::default() }
+    }
+
+    /// Cubes per axis.
+    pub(super) fn grid(&self) -> [u16; 3] {
+        self.map.grid
+    }
+
+    /// Every node's cost under the map ([`Partition::node_costs`]).
+    pub(super) fn node_costs(&self, p: &Partition) -> Vec<u64> {
+        p.node_costs_summed(self.map.grid, &self.sums)
+    }
+
+    /// `p`'s rows, each profiled and cut on its own ([`RowCache::rows`]).
+    pub(super) fn rows(&mut self, p: &Partition) -> (Vec<RowProfile>, Vec<Vec<u16>>) {
+        self.rows.rows(p, &self.sums)
+    }
+}
+
 impl Partition {
     /// Every node's cost under `map`, rays routed as the nodes route them
     /// ([`node_fw::route`]): a ray leaving a node across a non-driving axis
@@ -39,7 +70,7 @@ impl Partition {
     /// forwards it along that axis to the owner, every node on the way paying
     /// both sides of a hop.
     pub fn node_costs(&self, map: &CostMap) -> Vec<u64> {
-        self.node_costs_summed(map, &MapSums::new(map))
+        self.node_costs_summed(map.grid, &MapSums::new(map))
     }
 
     /// [`Self::node_costs`] with `map`'s sums made once for many partitions.
@@ -47,10 +78,10 @@ impl Partition {
     /// Every crossing lies on one face of the box it leaves: a node pays its
     /// cubes, and each face of its box inside the grid sends the rays leaving
     /// through it on their way, all together ([`Self::route_box`]).
-    pub(super) fn node_costs_summed(&self, map: &CostMap, sums: &MapSums) -> Vec<u64> {
+    fn node_costs_summed(&self, grid: [u16; 3], sums: &MapSums) -> Vec<u64> {
         let boxes: Vec<CubeBox> = (0..self.len()).map(|id| self.bounds(id)).collect();
         let mut cost: Vec<u64> = boxes.iter().map(|b| sums.cells.sum(lo(b), hi(b))).collect();
-        let grid = map.grid.map(usize::from);
+        let grid = grid.map(usize::from);
         for (id, b) in boxes.iter().enumerate() {
             for axis in 0..3 {
                 let (lo, hi) = (lo(b), hi(b));
