@@ -109,7 +109,7 @@ fn plan_frame(
 /// A frame planned afresh does not depend on the frame before, so it is
 /// planned on another thread while that frame renders: a preview fit costs
 /// the sequence only what it takes beyond the frame before. Its error, if
-/// any, is reported where it was before, after the frame before is handed on.
+/// any, comes after the frame before is handed on, as if planned then.
 pub fn run<T: Transport>(
     transport: &mut T,
     scene: &Scene,

@@ -11,8 +11,8 @@ use crate::plan::partition::Partition;
 /// A box of cubes, `lo <= c < hi` on every axis.
 type Cubes = ([usize; 3], [usize; 3]);
 
-/// The rays leaving one face of a node's box, routed together: the cubes
-/// beyond the face they are bound for, and where their charges are kept.
+/// The rays leaving one face of a node's box, routed together: where what
+/// they charge a hop is kept.
 struct Crossing<'a> {
     /// The charges: [`CostMap::up`] or [`CostMap::down`] along `axis`.
     charges: &'a BoxSums,
