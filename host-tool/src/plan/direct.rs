@@ -105,8 +105,11 @@ pub fn cost_map(
     Ok(map)
 }
 
-/// Charges each initial ray of a `size` image to the cube where it enters the
-/// grid: its creation with `creation`, else its receipt.
+/// Charges each initial ray of a `size` image: with `creation` (entry
+/// tiles), its creation to the cube on the grid's face toward the eye in its
+/// entry cube's row, where the tiles have it created, and its way along the
+/// view axis to the cube where it enters; else its receipt there. Rays that
+/// miss the grid are not charged.
 pub fn add_initial_rays(
     map: &mut CostMap,
     scene: &Scene,
@@ -119,10 +122,31 @@ pub fn add_initial_rays(
     let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
     let camera = PixelBasis::new(&scene.camera(), width, height).msg();
     let hop = HopPrice::new(cost, bytes);
+    let front = creation.then(|| front_layer(scene)).flatten();
     for (i, cell) in crate::plan::entry::entry_cells(&camera, &grid, [width, height]).into_iter().enumerate()
     {
         let Some(cell) = cell else { continue };
-        if creation {
+        if let Some((axis, layer)) = front {
+            // Entry tiles give the pixel to the node on the face toward the
+            // eye in the entry cube's row: it creates the ray there and
+            // passes it along the view axis to the cube where it enters.
+            let mut at = cell;
+            at[axis] = layer;
+            map.add_compute(at, cost.create + cost.pass);
+            if at != cell {
+                let (x, y) = (i % usize::from(width), i / usize::from(width));
+                let line =
+                    primary_line(&camera, x as u16, y as u16).map_err(|e| input(format!("camera: {e:?}")))?;
+                let price = hop.of(&primary_ray(&line, i as u32, PIXEL_CREDIT));
+                let step = (cell[axis] - layer).signum();
+                while at != cell {
+                    let mut next = at;
+                    next[axis] += step;
+                    map.add_crossing(at, next, price);
+                    at = next;
+                }
+            }
+        } else if creation {
             map.add_compute(cell, cost.create + cost.pass);
         } else {
             let (x, y) = (i % usize::from(width), i / usize::from(width));
@@ -133,6 +157,20 @@ pub fn add_initial_rays(
         }
     }
     Ok(())
+}
+
+/// The view axis and the layer of cubes on the grid's face toward the eye,
+/// where entry tiles create every initial ray ([`crate::plan::entry`]); `None`
+/// with the eye inside the grid, where the tiles are the regular ones.
+fn front_layer(scene: &Scene) -> Option<(usize, i32)> {
+    let eye = scene.camera().eye;
+    let g = scene.grid.map(f64::from);
+    if (0..3).all(|a| eye[a] > 0.0 && eye[a] < g[a]) {
+        return None;
+    }
+    let axis = usize::from(crate::plan::partition::view_axis(scene));
+    let layer = if eye[axis] < g[axis] / 2.0 { 0 } else { i32::from(scene.grid[axis]) - 1 };
+    Some((axis, layer))
 }
 
 /// What a node pays beside its cells' work, in short messages: one per
