@@ -160,17 +160,12 @@ pub fn add_initial_rays(
 }
 
 /// The view axis and the layer of cubes on the grid's face toward the eye,
-/// where entry tiles create every initial ray ([`crate::plan::entry`]); `None`
-/// with the eye inside the grid, where the tiles are the regular ones.
+/// where entry tiles create every initial ray; `None` with the eye inside the
+/// grid, where the tiles are the regular ones.
 fn front_layer(scene: &Scene) -> Option<(usize, i32)> {
-    let eye = scene.camera().eye;
-    let g = scene.grid.map(f64::from);
-    if (0..3).all(|a| eye[a] > 0.0 && eye[a] < g[a]) {
-        return None;
-    }
     let axis = usize::from(crate::plan::partition::view_axis(scene));
-    let layer = if eye[axis] < g[axis] / 2.0 { 0 } else { i32::from(scene.grid[axis]) - 1 };
-    Some((axis, layer))
+    let low = crate::plan::entry::eye_on_low_side(scene.camera().eye, scene.grid, axis)?;
+    Some((axis, if low { 0 } else { i32::from(scene.grid[axis]) - 1 }))
 }
 
 /// What a node pays beside its cells' work, in short messages: one per

@@ -32,11 +32,8 @@ pub fn entry_tiles(
     size: [u16; 2],
 ) -> Vec<[u16; 4]> {
     let regular = || tiles(size[0], size[1], partition.len());
-    let g = grid.map(f64::from);
     let Ok(cubes) = Grid::new(grid) else { return regular() };
-    if (0..3).all(|a| basis.eye[a] > 0.0 && basis.eye[a] < g[a]) {
-        return regular();
-    }
+    let Some(low) = eye_on_low_side(basis.eye, grid, view_axis) else { return regular() };
     let [w, h] = size.map(usize::from);
     // The array coordinate of each pixel's entry node, or None for a miss.
     let coords: Vec<Option<[u16; 3]>> = entry_cells(&basis.msg(), &cubes, size)
@@ -65,7 +62,7 @@ pub fn entry_tiles(
         .then(|| cols.iter().map(|&(x0, x1)| row_bands(x0, x1)).collect::<Vec<_>>());
     let cols_per_row =
         (slab_axis == Some(down)).then(|| rows.iter().map(|&(y0, y1)| col_bands(y0, y1)).collect::<Vec<_>>());
-    let front = if basis.eye[view_axis] < g[view_axis] / 2.0 { 0 } else { partition.array[view_axis] - 1 };
+    let front = if low { 0 } else { partition.array[view_axis] - 1 };
     (0..partition.len())
         .map(|id| {
             let c = partition.coord(id);
@@ -78,6 +75,17 @@ pub fn entry_tiles(
             [col.0, row.0, col.1, row.1].map(|v| v as u16)
         })
         .collect()
+}
+
+/// Where entry tiles create the rays for an eye at `eye`: `None` with the
+/// eye inside the grid (the tiles are the regular ones), else whether the
+/// grid's face toward the eye along `view_axis` is its low one.
+pub fn eye_on_low_side(eye: [f64; 3], grid: [u16; 3], view_axis: usize) -> Option<bool> {
+    let g = grid.map(f64::from);
+    if (0..3).all(|a| eye[a] > 0.0 && eye[a] < g[a]) {
+        return None;
+    }
+    Some(eye[view_axis] < g[view_axis] / 2.0)
 }
 
 /// Per pixel of a `size` image (row by row), the cube where its initial ray
