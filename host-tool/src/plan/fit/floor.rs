@@ -21,6 +21,8 @@ use crate::error::HostError;
 use crate::plan::cost_map::CostMap;
 use crate::plan::partition::Partition;
 
+use super::sums::LayerSums;
+
 /// Work (rectangles times their row program's steps) above which [`floor`]
 /// declines: a few seconds on this machine's two cores. A 32^3 grid on 8x8x8
 /// nodes takes 1.1e9.
@@ -56,7 +58,7 @@ pub fn floor(map: &CostMap, array: [u16; 3], driving_axis: u8) -> Result<Option<
     }
     let g = map.grid.map(usize::from);
     let n = array.map(usize::from);
-    let sums = LayerSums::new(map, [s, c, d]);
+    let sums = LayerSums::new(map, driving_axis);
     let table = RowTable::new(&sums, n[d]);
     // Per slab, its best columns; over the slabs, the best cut.
     let slabs: Vec<Vec<(u64, Vec<u16>)>> = (0..=g[s])
@@ -183,70 +185,7 @@ impl RowTable {
     }
 }
 
-/// Per layer across the driving axis, running sums over the slab and column
-/// axes of what cubes cost and of what rays crossing each face cost a side.
-struct LayerSums {
-    /// Cubes along the slab, column and driving axes.
-    g: [usize; 3],
-    /// Per layer, 2-D running sums of the cubes' costs: `[c][s]`, one
-    /// past each, `g[0] + 1` wide.
-    cubes: Vec<Vec<u64>>,
-    /// Per layer, 2-D running sums of the faces to the next layer.
-    ahead: Vec<Vec<u64>>,
-    /// Per layer and plane across the slab axis (between `s` and `s + 1`),
-    /// running sums along the column axis.
-    across_slab: Vec<Vec<Vec<u64>>>,
-    /// Per layer and plane across the column axis, running sums along the
-    /// slab axis.
-    across_column: Vec<Vec<Vec<u64>>>,
-}
-
 impl LayerSums {
-    fn new(map: &CostMap, [s, c, d]: [usize; 3]) -> Self {
-        let grid = map.grid.map(usize::from);
-        let g = [grid[s], grid[c], grid[d]];
-        let index = |is: usize, ic: usize, k: usize| {
-            let mut cell = [0usize; 3];
-            (cell[s], cell[c], cell[d]) = (is, ic, k);
-            cell[0] + grid[0] * (cell[1] + grid[1] * cell[2])
-        };
-        let face = |axis: usize, at: usize, limit: usize, i: usize| {
-            if at + 1 < limit { map.face(axis, i) } else { 0 }
-        };
-        let plane = |f: &dyn Fn(usize, usize) -> u64| {
-            let w = g[0] + 1;
-            let mut p = vec![0u64; w * (g[1] + 1)];
-            for ic in 0..g[1] {
-                for is in 0..g[0] {
-                    p[(ic + 1) * w + is + 1] =
-                        f(is, ic) + p[ic * w + is + 1] + p[(ic + 1) * w + is] - p[ic * w + is];
-                }
-            }
-            p
-        };
-        let run = |len: usize, f: &dyn Fn(usize) -> u64| {
-            std::iter::once(0)
-                .chain((0..len).scan(0u64, |sum, i| {
-                    *sum += f(i);
-                    Some(*sum)
-                }))
-                .collect::<Vec<u64>>()
-        };
-        let layers = 0..g[2];
-        Self {
-            g,
-            cubes: layers.clone().map(|k| plane(&|is, ic| map.cell(index(is, ic, k)))).collect(),
-            ahead: layers.clone().map(|k| plane(&|is, ic| face(d, k, g[2], index(is, ic, k)))).collect(),
-            across_slab: layers
-                .clone()
-                .map(|k| (0..g[0]).map(|is| run(g[1], &|ic| face(s, is, g[0], index(is, ic, k)))).collect())
-                .collect(),
-            across_column: layers
-                .map(|k| (0..g[1]).map(|ic| run(g[0], &|is| face(c, ic, g[1], index(is, ic, k)))).collect())
-                .collect(),
-        }
-    }
-
     /// Fills `rows` (the table's block for rectangles starting at `s0`).
     fn table_from(&self, s0: usize, parts: usize, rows: &mut [u64]) {
         let [gs, gc, _] = self.g;
@@ -266,49 +205,6 @@ impl LayerSums {
         let (prefix, plane) = self.profile(r);
         least_busiest(self.g[2], parts, |i, j| prefix[j] - prefix[i] + plane[i] + plane[j])
     }
-
-    /// A row over rectangle `r`: `prefix[k]`, what layers `0..k` cost;
-    /// `plane[k]`, what each side of a cut at `k` pays (none at the ends).
-    fn profile(&self, r: [usize; 4]) -> (Vec<u64>, Vec<u64>) {
-        let [gs, _, gd] = self.g;
-        let mut prefix = vec![0u64; gd + 1];
-        let mut plane = vec![0u64; gd + 1];
-        for k in 0..gd {
-            prefix[k + 1] = prefix[k] + self.layer(k, r);
-            if k + 1 < gd {
-                plane[k + 1] = rectangle(&self.ahead[k], gs + 1, r);
-            }
-        }
-        (prefix, plane)
-    }
-
-    /// What layer `k` of a row over rectangle `r` costs its holder: its cubes
-    /// and the crossings of the row's side faces inside the grid.
-    fn layer(&self, k: usize, r: [usize; 4]) -> u64 {
-        let [gs, gc, _] = self.g;
-        let [s0, s1, c0, c1] = r;
-        let mut sum = rectangle(&self.cubes[k], gs + 1, r);
-        let along = |run: &Vec<u64>, lo: usize, hi: usize| run[hi] - run[lo];
-        if s0 > 0 {
-            sum += along(&self.across_slab[k][s0 - 1], c0, c1);
-        }
-        if s1 < gs {
-            sum += along(&self.across_slab[k][s1 - 1], c0, c1);
-        }
-        if c0 > 0 {
-            sum += along(&self.across_column[k][c0 - 1], s0, s1);
-        }
-        if c1 < gc {
-            sum += along(&self.across_column[k][c1 - 1], s0, s1);
-        }
-        sum
-    }
-}
-
-/// The sum over rectangle `[s0, s1) x [c0, c1)` from 2-D running sums `p`
-/// of row width `w`.
-fn rectangle(p: &[u64], w: usize, [s0, s1, c0, c1]: [usize; 4]) -> u64 {
-    p[c1 * w + s1] + p[c0 * w + s0] - p[c0 * w + s1] - p[c1 * w + s0]
 }
 
 #[cfg(test)]

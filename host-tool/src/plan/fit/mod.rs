@@ -66,7 +66,7 @@ impl Partition {
             }
             (p, best) = (next, busiest);
         }
-        let mut pricing = Pricing::new(map);
+        let mut pricing = Pricing::new(map, driving_axis);
         let whole = p.refine(&mut pricing, most);
         if most < Boundaries::StaggeredColumns {
             return Ok(p);
@@ -343,7 +343,7 @@ mod tests {
             for y in 1..16 {
                 let mut p = Partition::even(grid, [2, 2, 2], 2).unwrap();
                 (p.cuts[0][1], p.cuts[1][1]) = (x, y);
-                let mut pricing = super::Pricing::new(&map);
+                let mut pricing = super::Pricing::new(&map, 2);
                 whole = whole.min(p.cut_rows(&mut pricing, Boundaries::StaggeredRows).0);
             }
         }

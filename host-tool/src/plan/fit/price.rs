@@ -4,7 +4,7 @@
 use node_fw::CubeBox;
 
 use super::rows::{RowCache, RowProfile};
-use super::sums::{BoxSums, MapSums};
+use super::sums::{BoxSums, LayerSums, MapSums};
 use crate::plan::cost_map::CostMap;
 use crate::plan::partition::Partition;
 
@@ -38,13 +38,15 @@ impl Crossing<'_> {
 pub(super) struct Pricing<'a> {
     map: &'a CostMap,
     sums: MapSums,
+    layers: LayerSums,
     rows: RowCache,
 }
 
 impl<'a> Pricing<'a> {
-    /// Ready to price partitions of `map`.
-    pub(super) fn new(map: &'a CostMap) -> Self {
-        Self { map, sums: MapSums::new(map), rows: RowCache::default() }
+    /// Ready to price partitions of `map` along `driving_axis`.
+    pub(super) fn new(map: &'a CostMap, driving_axis: u8) -> Self {
+        let layers = LayerSums::new(map, driving_axis);
+        Self { map, sums: MapSums::new(map), layers, rows: RowCache::default() }
     }
 
     /// Cubes per axis.
@@ -59,7 +61,7 @@ impl<'a> Pricing<'a> {
 
     /// `p`'s rows, each profiled and cut on its own ([`RowCache::rows`]).
     pub(super) fn rows(&mut self, p: &Partition) -> (Vec<RowProfile>, Vec<Vec<u16>>) {
-        self.rows.rows(p, &self.sums)
+        self.rows.rows(p, &self.layers)
     }
 }
 

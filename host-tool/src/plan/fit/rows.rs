@@ -7,7 +7,7 @@ use crate::plan::cost_map::CostMap;
 use crate::plan::partition::Partition;
 
 use super::floor;
-use super::sums::{BoxSums, MapSums};
+use super::sums::LayerSums;
 
 impl Partition {
     /// Per row of nodes along the driving axis, what it pays before it is cut
@@ -15,10 +15,8 @@ impl Partition {
     /// cut only adds to it.
     pub fn row_loads(&self, map: &CostMap) -> Vec<u64> {
         let parts = usize::from(self.array[usize::from(self.driving_axis)]);
-        let sums = MapSums::new(map);
-        (0..self.len() / parts)
-            .map(|row| self.row_profile(map.grid, &sums, row).layers.iter().sum())
-            .collect()
+        let sums = LayerSums::new(map, self.driving_axis);
+        (0..self.len() / parts).map(|row| self.row_profile(&sums, row).layers.iter().sum()).collect()
     }
 
     /// The cubes along `axis` (one across the driving axis) that row `row`
@@ -37,44 +35,11 @@ impl Partition {
     /// the driving axis, its cubes and its crossings of the row's side faces;
     /// per plane `k` between layers `k - 1` and `k`, what each side of a cut
     /// there pays (`0` at the row's ends).
-    pub(super) fn row_profile(&self, grid: [u16; 3], sums: &MapSums, row: usize) -> RowProfile {
-        let d = usize::from(self.driving_axis);
-        let [a0, a1] = self.row_axes();
-        let g = grid.map(usize::from);
-        let n = g[d];
-        let span = |a: usize| {
-            let (lo, hi) = self.row_span(row, a);
-            (usize::from(lo), usize::from(hi))
-        };
-        let ((lo0, hi0), (lo1, hi1)) = (span(a0), span(a1));
-        // The sum of `s` over the row's cubes in layer `k`, with its span
-        // along `a` replaced by `along`.
-        let layer = |s: &BoxSums, k: usize, a: Option<(usize, (usize, usize))>| {
-            let (mut lo, mut hi) = ([0; 3], [0; 3]);
-            (lo[a0], hi[a0], lo[a1], hi[a1], lo[d], hi[d]) = (lo0, hi0, lo1, hi1, k, k + 1);
-            if let Some((a, (l, h))) = a {
-                (lo[a], hi[a]) = (l, h);
-            }
-            s.sum(lo, hi)
-        };
-        let (mut layers, mut planes) = (vec![0u64; n], vec![0u64; n + 1]);
-        for k in 0..n {
-            let mut sum = layer(&sums.cells, k, None);
-            // The row's side faces: crossings are kept at the lower cube.
-            for (a, lo, hi) in [(a0, lo0, hi0), (a1, lo1, hi1)] {
-                if lo > 0 {
-                    sum += layer(&sums.faces[a], k, Some((a, (lo - 1, lo))));
-                }
-                if hi < g[a] {
-                    sum += layer(&sums.faces[a], k, Some((a, (hi - 1, hi))));
-                }
-            }
-            layers[k] = sum;
-            if k + 1 < n {
-                planes[k + 1] = layer(&sums.faces[d], k, None);
-            }
-        }
-        RowProfile { layers, planes }
+    pub(super) fn row_profile(&self, sums: &LayerSums, row: usize) -> RowProfile {
+        let [s, c] = self.routed_axes();
+        let ((s0, s1), (c0, c1)) = (self.row_span(row, s), self.row_span(row, c));
+        let (prefix, planes) = sums.profile([s0, s1, c0, c1].map(usize::from));
+        RowProfile { layers: prefix.windows(2).map(|w| w[1] - w[0]).collect(), planes }
     }
 }
 
@@ -89,17 +54,15 @@ pub(super) struct RowCache {
 
 impl RowCache {
     /// Every row of `p` in [`Partition::row_of`] order: its profile under
-    /// `sums`, and its own cuts into `parts`.
-    pub(super) fn rows(&mut self, p: &Partition, sums: &MapSums) -> (Vec<RowProfile>, Vec<Vec<u16>>) {
-        let d = usize::from(p.driving_axis);
-        let parts = usize::from(p.array[d]);
+    /// `sums` (along `p`'s driving axis), and its own cuts.
+    pub(super) fn rows(&mut self, p: &Partition, sums: &LayerSums) -> (Vec<RowProfile>, Vec<Vec<u16>>) {
+        let parts = usize::from(p.array[usize::from(p.driving_axis)]);
         let [a0, a1] = p.row_axes();
-        let grid = std::array::from_fn(|a| p.cuts[a].last().copied().unwrap_or(0));
         (0..p.len() / parts.max(1))
             .map(|row| {
                 let ((lo0, hi0), (lo1, hi1)) = (p.row_span(row, a0), p.row_span(row, a1));
                 let (profile, cuts) = self.rows.entry([lo0, hi0, lo1, hi1]).or_insert_with(|| {
-                    let profile = p.row_profile(grid, sums, row);
+                    let profile = p.row_profile(sums, row);
                     let cuts = row_cuts(std::slice::from_ref(&profile), parts);
                     (profile, cuts)
                 });
@@ -157,7 +120,7 @@ pub fn row_cuts(rows: &[RowProfile], parts: usize) -> Vec<u16> {
 mod tests {
     use proptest::prelude::*;
 
-    use super::super::sums::MapSums;
+    use super::super::sums::LayerSums;
     use super::super::testing::{map_of, partition_of};
     use super::RowProfile;
     use crate::plan::cost_map::CostMap;
@@ -216,10 +179,10 @@ mod tests {
             prop_assume!((0..3).all(|a| array[a] <= grid[a]));
             let p = partition_of(grid, array, d, &seeds, (slabs, false));
             let map = map_of(grid, &values);
-            let sums = MapSums::new(&map);
+            let sums = LayerSums::new(&map, d);
             let rows = p.len() / usize::from(array[usize::from(d)]);
             for row in 0..rows {
-                prop_assert_eq!(p.row_profile(grid, &sums, row), walked(&p, &map, row));
+                prop_assert_eq!(p.row_profile(&sums, row), walked(&p, &map, row));
             }
         }
     }
