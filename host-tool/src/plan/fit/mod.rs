@@ -75,7 +75,7 @@ impl Partition {
         // own columns, from the whole cuts, from its own cubes' costs, or as
         // the family's floor cuts them.
         let mut best = (whole, p.clone());
-        let exact = floor::floor(map, array, driving_axis)?.map(|f| f.partition);
+        let exact = floor::floor_under(map, array, driving_axis, Some(&p))?.map(|f| f.partition);
         for start in [Some(p.slabs_alike()), Some(p.slabs_on_their_own(&cells)), exact].into_iter().flatten()
         {
             let mut jagged = start;
