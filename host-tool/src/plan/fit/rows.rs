@@ -87,16 +87,6 @@ impl RowProfile {
     fn plane(&self, k: usize) -> u64 {
         if k == 0 || k == self.layers.len() { 0 } else { self.planes.get(k).copied().unwrap_or(0) }
     }
-
-    /// The layers' running sums: `[0, l_0, l_0 + l_1, ...]`.
-    fn prefix(&self) -> Vec<u64> {
-        std::iter::once(0)
-            .chain(self.layers.iter().scan(0u64, |sum, &l| {
-                *sum += l;
-                Some(*sum)
-            }))
-            .collect()
-    }
 }
 
 /// Cuts `0 = c_0 < ... < c_parts = n` shared by `rows` (of `n` layers each)
@@ -105,15 +95,28 @@ impl RowProfile {
 pub fn row_cuts(rows: &[RowProfile], parts: usize) -> Vec<u16> {
     let n = rows.first().map_or(0, |r| r.layers.len());
     let parts = parts.clamp(1, n.max(1));
-    // cost[i][j]: what the part of layers i..j pays in the busiest row, by
-    // running sums, tabled once (the search asks for each span many times).
-    let sums: Vec<Vec<u64>> = rows.iter().map(RowProfile::prefix).collect();
-    let part = |i: usize, j: usize| {
-        rows.iter().zip(&sums).map(|(r, s)| s[j] - s[i] + r.plane(i) + r.plane(j)).max().unwrap_or(0)
-    };
-    let cost: Vec<Vec<u64>> =
-        (0..=n).map(|i| (0..=n).map(|j| if i < j { part(i, j) } else { 0 }).collect()).collect();
-    floor::least_busiest(n, parts, |i, j| cost[i][j]).1
+    // cost[i * (n + 1) + j]: what the part of layers i..j pays in the
+    // busiest row, by running sums, tabled once (the search asks for each
+    // span many times), a row at a time: the local search tables this for
+    // every candidate, and the inner loop over j vectorises.
+    let mut cost = vec![0u64; (n + 1) * (n + 1)];
+    let (mut sums, mut plane) = (vec![0u64; n + 1], vec![0u64; n + 1]);
+    for r in rows {
+        for k in 0..n {
+            sums[k + 1] = sums[k] + r.layers[k];
+        }
+        for (k, p) in plane.iter_mut().enumerate() {
+            *p = r.plane(k);
+        }
+        for i in 0..n {
+            let (start, from) = (sums[i], plane[i]);
+            let row = &mut cost[i * (n + 1) + i + 1..(i + 1) * (n + 1)];
+            for ((c, &s), &p) in row.iter_mut().zip(&sums[i + 1..]).zip(&plane[i + 1..]) {
+                *c = (*c).max(s - start + from + p);
+            }
+        }
+    }
+    floor::least_busiest(n, parts, |i, j| cost[i * (n + 1) + j]).1
 }
 
 #[cfg(test)]
