@@ -73,13 +73,21 @@ impl Partition {
         }
         // Beyond whole planes: each slab across the first routed axis cuts its
         // own columns, from the whole cuts, from its own cubes' costs, or as
-        // the family's floor cuts them.
-        let mut best = (whole, p.clone());
-        let exact = floor::floor_under(map, array, driving_axis, Some(&p))?.map(|f| f.partition);
-        for start in [Some(p.slabs_alike()), Some(p.slabs_on_their_own(&cells)), exact].into_iter().flatten()
-        {
-            let mut jagged = start;
-            let s = jagged.refine(&mut pricing, most);
+        // the family's floor cuts them. The starts are searched each on its
+        // own core (a row's price depends on nothing but its rectangle, so
+        // each search keeps its own rows), and the best is taken in this
+        // order, the first of equals.
+        let refined = |mut start: Self, pricing: &mut Pricing<'_>| (start.refine(pricing, most), start);
+        let (alike, own, exact) = std::thread::scope(|scope| {
+            let alike = scope.spawn(|| refined(p.slabs_alike(), &mut Pricing::new(map, driving_axis)));
+            let own =
+                scope.spawn(|| refined(p.slabs_on_their_own(&cells), &mut Pricing::new(map, driving_axis)));
+            let exact = floor::floor_under(map, array, driving_axis, Some(&p))
+                .map(|f| f.map(|f| refined(f.partition, &mut pricing)));
+            (join(alike), join(own), exact)
+        });
+        let mut best = (whole, p);
+        for (s, jagged) in [Some(alike), Some(own), exact?].into_iter().flatten() {
             if s < best.0 {
                 best = (s, jagged);
             }
@@ -200,6 +208,11 @@ impl Partition {
             a
         }
     }
+}
+
+/// What a search on another thread found; a panic there goes on here.
+fn join<T>(search: std::thread::ScopedJoinHandle<'_, T>) -> T {
+    search.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic))
 }
 
 /// A fit's score: the busiest node's cost, then the sum of squares.
