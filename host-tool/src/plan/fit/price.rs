@@ -79,69 +79,89 @@ impl Partition {
     ///
     /// Every crossing lies on one face of the box it leaves: a node pays its
     /// cubes, and each face of its box inside the grid sends the rays leaving
-    /// through it on their way, all together ([`Self::route_box`]).
+    /// through it on their way, all together ([`Routes::send`]).
     fn node_costs_summed(&self, grid: [u16; 3], sums: &MapSums) -> Vec<u64> {
-        let boxes: Vec<CubeBox> = (0..self.len()).map(|id| self.bounds(id)).collect();
-        let mut cost: Vec<u64> = boxes.iter().map(|b| sums.cells.sum(lo(b), hi(b))).collect();
+        let routes = Routes::new(self);
+        let mut cost: Vec<u64> = routes.boxes.iter().map(|&(lo, hi)| sums.cells.sum(lo, hi)).collect();
         let grid = grid.map(usize::from);
-        for (id, b) in boxes.iter().enumerate() {
+        for (id, &(lo, hi)) in routes.boxes.iter().enumerate() {
             for axis in 0..3 {
-                let (lo, hi) = (lo(b), hi(b));
                 if hi[axis] < grid[axis] {
                     let mut beyond = (lo, hi);
                     (beyond.0[axis], beyond.1[axis]) = (hi[axis], hi[axis] + 1);
                     let up = Crossing { charges: &sums.up[axis], axis, upward: true };
-                    self.route_box(&boxes, &mut cost, id, beyond, &up);
+                    routes.send(&mut cost, id, beyond, &up);
                 }
                 if lo[axis] > 0 {
                     let mut beyond = (lo, hi);
                     (beyond.0[axis], beyond.1[axis]) = (lo[axis] - 1, lo[axis]);
                     let down = Crossing { charges: &sums.down[axis], axis, upward: false };
-                    self.route_box(&boxes, &mut cost, id, beyond, &down);
+                    routes.send(&mut cost, id, beyond, &down);
                 }
             }
         }
         cost
     }
+}
+
+/// How the nodes of a partition route a ray ([`node_fw::route::toward`]):
+/// their boxes, and the order and strides of the axes.
+struct Routes {
+    boxes: Vec<Cubes>,
+    /// The non-driving axes, then the driving axis.
+    order: [usize; 3],
+    /// How far apart neighbours along each axis are in node order.
+    stride: [usize; 3],
+}
+
+impl Routes {
+    fn new(p: &Partition) -> Self {
+        let d = usize::from(p.driving_axis);
+        let [x, y, _] = p.array.map(usize::from);
+        let boxes = (0..p.len()).map(|id| p.bounds(id)).map(|b| (lo(&b), hi(&b))).collect();
+        Self { boxes, order: [(d + 1) % 3, (d + 2) % 3, d], stride: [1, x, x * y] }
+    }
 
     /// Charges both ends of every hop of the rays at node `at` bound for
-    /// `cubes`, as the nodes route each ray ([`node_fw::route::toward`]):
-    /// the first axis in routing order on which a cube lies outside the
-    /// node's box decides its port. So the cubes are split by the box's
-    /// bounds on that axis: those below and above hop to the neighbour that
-    /// way, and those within go on to the next axis from the same node.
-    fn route_box(&self, boxes: &[CubeBox], cost: &mut [u64], at: usize, cubes: Cubes, rays: &Crossing<'_>) {
-        let d = usize::from(self.driving_axis);
-        let b = &boxes[at];
-        for axis in [(d + 1) % 3, (d + 2) % 3, d] {
-            let (blo, bhi) = (usize::from(b.lo[axis]), usize::from(b.hi[axis]));
-            let (lo, hi) = (cubes.0[axis], cubes.1[axis]);
-            if lo >= blo && hi <= bhi {
-                continue;
-            }
-            let stride =
-                [1, usize::from(self.array[0]), usize::from(self.array[0]) * usize::from(self.array[1])];
-            let part = |from: usize, to: usize| {
-                let mut p = cubes;
-                (p.0[axis], p.1[axis]) = (from, to);
-                p
-            };
-            for (part, next) in [
-                (part(lo, hi.min(blo)), at.wrapping_sub(stride[axis])),
-                (part(lo.max(bhi), hi), at + stride[axis]),
-            ] {
-                if part.0[axis] < part.1[axis] {
-                    let price = rays.price(part);
-                    cost[at] += price;
-                    cost[next] += price;
-                    self.route_box(boxes, cost, next, part, rays);
-                }
-            }
-            let within = part(lo.max(blo), hi.min(bhi));
-            if within.0[axis] < within.1[axis] {
-                self.route_box(boxes, cost, at, within, rays);
-            }
+    /// `cubes`, as the nodes route each ray: the first axis in routing
+    /// order on which a cube lies outside the node's box decides its port.
+    /// So the cubes are split by the box's bounds on that axis: those below
+    /// and above hop to the neighbour that way, and those within go on to
+    /// the next axis from the same node.
+    fn send(&self, cost: &mut [u64], at: usize, cubes: Cubes, rays: &Crossing<'_>) {
+        let (blo, bhi) = self.boxes[at];
+        let outside = |a: usize| cubes.0[a] < blo[a] || cubes.1[a] > bhi[a];
+        let Some(axis) = self.order.into_iter().find(|&a| outside(a)) else {
             return;
+        };
+        let (lo, hi) = (cubes.0[axis], cubes.1[axis]);
+        let part = |from: usize, to: usize| {
+            let mut p = cubes;
+            (p.0[axis], p.1[axis]) = (from, to);
+            p
+        };
+        if lo < blo[axis] {
+            self.hop(cost, at, at - self.stride[axis], part(lo, hi.min(blo[axis])), rays);
+        }
+        if hi > bhi[axis] {
+            self.hop(cost, at, at + self.stride[axis], part(lo.max(bhi[axis]), hi), rays);
+        }
+        let within = part(lo.max(blo[axis]), hi.min(bhi[axis]));
+        if within.0[axis] < within.1[axis] {
+            self.send(cost, at, within, rays);
+        }
+    }
+
+    /// One hop of the rays bound for `cubes`, from `at` to its neighbour
+    /// `next`, charged at both ends; and on from there unless they are home
+    /// (most are: checked here, it spares a call).
+    fn hop(&self, cost: &mut [u64], at: usize, next: usize, cubes: Cubes, rays: &Crossing<'_>) {
+        let price = rays.price(cubes);
+        cost[at] += price;
+        cost[next] += price;
+        let (nlo, nhi) = self.boxes[next];
+        if (0..3).any(|a| cubes.0[a] < nlo[a] || cubes.1[a] > nhi[a]) {
+            self.send(cost, next, cubes, rays);
         }
     }
 }
