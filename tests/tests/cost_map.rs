@@ -106,12 +106,15 @@ fn a_preview_fitted_with_messages_lowers_the_busiest_node() {
     assert!(fitted < even * 3 / 4, "busiest node: even {even}, preview {fitted}");
 }
 
-/// Seen at an angle, rays enter the grid through its side faces too, while
-/// entry tiles create every one on the face toward the eye: the map charges
-/// their creation there, and their way along the view axis to where they
-/// enter. When the map charged creation where the rays entered, node 0 (a
-/// corner of the front face) was busy 2.78e6 cycles against the map's
-/// 1.95e6, 22% of the busiest node's time.
+/// Seen at an angle, rays enter the grid through its side faces too. Entry
+/// tiles have those entering through the side face toward the eye created
+/// where they enter, and the others on the face toward the eye, whence they
+/// go along the view axis: the map charges each where the tiles create it.
+/// When the map charged creation where the rays entered while the tiles
+/// created every ray on the front face, node 0 (a corner of the front face)
+/// was busy 2.78e6 cycles against the map's 1.95e6, 22% of the busiest
+/// node's time; the map charging the front face for every ray fails too,
+/// now that the side face creates its own.
 #[test]
 fn the_cost_map_accounts_for_initial_rays_seen_at_an_angle() {
     let (s, opts) = options();

@@ -106,10 +106,12 @@ pub fn cost_map(
 }
 
 /// Charges each initial ray of a `size` image: with `creation` (entry
-/// tiles), its creation to the cube on the grid's face toward the eye in its
-/// entry cube's row, where the tiles have it created, and its way along the
-/// view axis to the cube where it enters; else its receipt there. Rays that
-/// miss the grid are not charged.
+/// tiles), its creation where the tiles have it created, and its way from
+/// there to the cube where it enters: on the side face toward the eye
+/// across the image the entry cube itself, elsewhere the cube on the grid's
+/// face toward the eye in its entry cube's row, whence it goes along the
+/// view axis ([`crate::plan::entry`]). Without, its receipt where it enters.
+/// Rays that miss the grid are not charged.
 pub fn add_initial_rays(
     map: &mut CostMap,
     scene: &Scene,
@@ -120,25 +122,24 @@ pub fn add_initial_rays(
 ) -> Result<(), HostError> {
     let [width, height] = size;
     let grid = Grid::new(scene.grid).map_err(|e| input(format!("grid: {e:?}")))?;
-    let camera = PixelBasis::new(&scene.camera(), width, height).msg();
+    let basis = PixelBasis::new(&scene.camera(), width, height);
+    let camera = basis.msg();
     let hop = HopPrice::new(cost, bytes);
-    let front = creation.then(|| front_layer(scene)).flatten();
+    let creators = creation.then(|| Creators::of(scene, &basis)).flatten();
     for (i, cell) in crate::plan::entry::entry_cells(&camera, &grid, [width, height]).into_iter().enumerate()
     {
         let Some(cell) = cell else { continue };
-        if let Some((axis, layer)) = front {
-            // Entry tiles give the pixel to the node on the face toward the
-            // eye in the entry cube's row: it creates the ray there and
-            // passes it along the view axis to the cube where it enters.
-            let mut at = cell;
-            at[axis] = layer;
+        if let Some(creators) = &creators {
+            let mut at = creators.creator(cell);
             map.add_compute(at, cost.create + cost.pass);
             if at != cell {
+                // Passed along the view axis to the cube where it enters.
                 let (x, y) = (i % usize::from(width), i / usize::from(width));
                 let line =
                     primary_line(&camera, x as u16, y as u16).map_err(|e| input(format!("camera: {e:?}")))?;
                 let price = hop.of(&primary_ray(&line, i as u32, PIXEL_CREDIT));
-                let step = (cell[axis] - layer).signum();
+                let axis = creators.view_axis;
+                let step = (cell[axis] - at[axis]).signum();
                 while at != cell {
                     let mut next = at;
                     next[axis] += step;
@@ -159,13 +160,38 @@ pub fn add_initial_rays(
     Ok(())
 }
 
-/// The view axis and the layer of cubes on the grid's face toward the eye,
-/// where entry tiles create every initial ray; `None` with the eye inside the
-/// grid, where the tiles are the regular ones.
-fn front_layer(scene: &Scene) -> Option<(usize, i32)> {
-    let axis = usize::from(crate::plan::partition::view_axis(scene));
-    let low = crate::plan::entry::eye_on_low_side(scene.camera().eye, scene.grid, axis)?;
-    Some((axis, if low { 0 } else { i32::from(scene.grid[axis]) - 1 }))
+/// Where entry tiles create the initial rays, by cube: `None` with the eye
+/// inside the grid, where the tiles are the regular ones.
+struct Creators {
+    view_axis: usize,
+    /// The layer of cubes on the grid's face toward the eye along the view axis.
+    front: i32,
+    /// The side face toward the eye across the image, if the eye sees one:
+    /// its axis and its layer of cubes.
+    side: Option<(usize, i32)>,
+}
+
+impl Creators {
+    fn of(scene: &Scene, basis: &PixelBasis) -> Option<Self> {
+        let view_axis = usize::from(crate::plan::partition::view_axis(scene));
+        let g = scene.grid.map(i32::from);
+        let low = crate::plan::entry::eye_on_low_side(basis.eye, scene.grid, view_axis)?;
+        let across = crate::plan::entry::across_axis(basis, view_axis);
+        let side = crate::plan::entry::side_toward_eye(basis.eye, scene.grid, across)
+            .map(|low| (across, if low { 0 } else { g[across] - 1 }));
+        Some(Self { view_axis, front: if low { 0 } else { g[view_axis] - 1 }, side })
+    }
+
+    /// The cube where the ray entering at `cell` is created: `cell` itself
+    /// on the side face toward the eye, else the front face's cube in its row.
+    fn creator(&self, cell: [i32; 3]) -> [i32; 3] {
+        if self.side.is_some_and(|(axis, layer)| cell[axis] == layer) {
+            return cell;
+        }
+        let mut at = cell;
+        at[self.view_axis] = self.front;
+        at
+    }
 }
 
 /// What a node pays beside its cells' work, in short messages: one per

@@ -6,9 +6,13 @@
 //! nodes on the face toward the eye receive all of them. Beyond the paper,
 //! the host can instead give each node on that face the sub-image that
 //! enters through its part of the face: rays then start (nearly always) on
-//! the node that traces them first. Which node creates a ray changes nothing
-//! in the image; a ray that enters elsewhere (through a side face, or across
-//! a tile's rounded edge) is passed on as in the parallel mode.
+//! the node that traces them first. Seen at an angle, the grid also shows
+//! the eye a side face: the nodes on it are given the sub-images that enter
+//! through their parts of it, so those rays too start where they enter
+//! rather than on the front face, a hop per node between. Which node
+//! creates a ray changes nothing in the image; a ray that enters elsewhere
+//! (through the top or bottom face, or across a tile's rounded edge) is
+//! passed on as in the parallel mode.
 
 use link_proto::CameraMsg;
 use node_fw::camera::primary_line;
@@ -18,12 +22,13 @@ use crate::plan::camera::PixelBasis;
 use crate::plan::partition::{Partition, tiles};
 
 /// A tile `[x0, y0, x1, y1)` per node for a `size` image: the nodes whose
-/// coordinate along `view_axis` is on the eye's side get the pixels whose
-/// rays enter through their part of the grid's face, the others none. The
-/// tiles cover every pixel once: a column's tile is that of the rays of
-/// most of the column, and pixels whose rays miss the grid go with their
-/// nearest neighbours. With the eye inside the grid, or no ray entering it,
-/// the regular tiles of the parallel mode are returned.
+/// coordinate along `view_axis` is on the eye's side, and those on the side
+/// face toward the eye across the image ([`side_toward_eye`]), get the
+/// pixels whose rays enter through their part of the grid's faces, the
+/// others none. The tiles cover every pixel once: a column's tile is that of
+/// the rays of most of the column, and pixels whose rays miss the grid go
+/// with their nearest neighbours. With the eye inside the grid, or no ray
+/// entering it, the regular tiles of the parallel mode are returned.
 pub fn entry_tiles(
     basis: &PixelBasis,
     grid: [u16; 3],
@@ -43,38 +48,160 @@ pub fn entry_tiles(
     if coords.iter().all(Option::is_none) {
         return regular();
     }
-    let others: Vec<usize> = (0..3).filter(|&a| a != view_axis).collect();
-    let (across, down) = image_axes(&coords, w, others[0], others[1]);
+    let across = across_axis(basis, view_axis);
+    let down = 3 - view_axis - across;
+    let outline =
+        Outline::new(partition.array, view_axis, low, across, side_toward_eye(basis.eye, grid, across));
     let at = |x: usize, y: usize| coords.get(y * w + x).copied().flatten();
-    // Bands of image columns by the across coordinate, counting rows y0..y1;
-    // bands of image rows by the down coordinate, counting columns x0..x1.
+    // Bands of image columns by their place on the outline, counting rows
+    // y0..y1; bands of image rows by the down coordinate, counting columns x0..x1.
     let col_bands = |y0: usize, y1: usize| {
-        bands(w, partition.array[across], |x| (y0..y1).filter_map(move |y| at(x, y)).map(|c| c[across]))
+        bands(w, outline.places(), |x| {
+            (y0..y1).filter_map(move |y| at(x, y)).map(|c| outline.place_of_ray(c))
+        })
     };
     let row_bands = |x0: usize, x1: usize| {
         bands(h, partition.array[down], |y| (x0..x1).filter_map(move |x| at(x, y)).map(|c| c[down]))
     };
     let (cols, rows) = (col_bands(0, h), row_bands(0, w));
+    let tiling = |order: Order| {
+        let rows_per_col = (order == Order::RowsPerColumn)
+            .then(|| cols.iter().map(|&(x0, x1)| row_bands(x0, x1)).collect::<Vec<_>>());
+        let cols_per_row = (order == Order::ColumnsPerRow)
+            .then(|| rows.iter().map(|&(y0, y1)| col_bands(y0, y1)).collect::<Vec<_>>());
+        (0..partition.len())
+            .map(|id| {
+                let c = partition.coord(id);
+                let Some(place) = outline.place_of_node(c) else { return [0; 4] };
+                let j = usize::from(c[down]);
+                let col = cols_per_row.as_ref().map_or(cols[place], |per| per[j][place]);
+                let row = rows_per_col.as_ref().map_or(rows[j], |per| per[place][j]);
+                if col.0 == col.1 || row.0 == row.1 {
+                    return [0; 4];
+                }
+                [col.0, row.0, col.1, row.1].map(|v| v as u16)
+            })
+            .collect::<Vec<_>>()
+    };
     // Columns cut per slab: each slab's band of image lines is cut on its own.
     let slab_axis = partition.slab_cuts.as_ref().map(|_| partition.routed_axes()[0]);
     let slab_axis = slab_axis.filter(|_| usize::from(partition.driving_axis) == view_axis);
-    let rows_per_col = (slab_axis == Some(across))
-        .then(|| cols.iter().map(|&(x0, x1)| row_bands(x0, x1)).collect::<Vec<_>>());
-    let cols_per_row =
-        (slab_axis == Some(down)).then(|| rows.iter().map(|&(y0, y1)| col_bands(y0, y1)).collect::<Vec<_>>());
-    let front = if low { 0 } else { partition.array[view_axis] - 1 };
-    (0..partition.len())
-        .map(|id| {
+    let order = match slab_axis {
+        Some(a) if a == across => Order::RowsPerColumn,
+        Some(a) if a == down => Order::ColumnsPerRow,
+        _ => Order::Whole,
+    };
+    if outline.side.is_none() {
+        return tiling(order);
+    }
+    // Seen at an angle, a node's part of a face is no rectangle in the
+    // image, and rows along the view axis may be cut each on its own: of
+    // the ways to cut, the one that leaves the most rays at home.
+    let at_home = |tiles: &[[u16; 4]]| -> usize {
+        let home = |id: usize, t: &[u16; 4]| {
             let c = partition.coord(id);
-            let (i, j) = (usize::from(c[across]), usize::from(c[down]));
-            let col = cols_per_row.as_ref().map_or(cols[i], |per| per[j][i]);
-            let row = rows_per_col.as_ref().map_or(rows[j], |per| per[i][j]);
-            if c[view_axis] != front || col.0 == col.1 || row.0 == row.1 {
-                return [0; 4];
-            }
-            [col.0, row.0, col.1, row.1].map(|v| v as u16)
-        })
-        .collect()
+            let (xs, ys) = (usize::from(t[0])..usize::from(t[2]), usize::from(t[1])..usize::from(t[3]));
+            ys.flat_map(|y| xs.clone().map(move |x| (x, y))).filter(|&(x, y)| at(x, y) == Some(c)).count()
+        };
+        tiles.iter().enumerate().map(|(id, t)| home(id, t)).sum()
+    };
+    let mut best = tiling(order);
+    let mut most = at_home(&best);
+    for other in [Order::Whole, Order::RowsPerColumn, Order::ColumnsPerRow] {
+        let tiles = tiling(other);
+        let home = at_home(&tiles);
+        if home > most {
+            (best, most) = (tiles, home);
+        }
+    }
+    best
+}
+
+/// How entry tiles cut the image: columns and rows each once, or the rows
+/// of each band of columns on their own, or the columns of each band of rows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Order {
+    Whole,
+    RowsPerColumn,
+    ColumnsPerRow,
+}
+
+/// The grid's outline across the image as the eye sees it, a place per
+/// node that creates rays: the nodes of the face toward the eye along the
+/// view axis, in order across the image, and beyond one end of them the
+/// nodes of the side face toward the eye, deeper ones further out.
+struct Outline {
+    array: [u16; 3],
+    view_axis: usize,
+    /// The front layer's coordinate along the view axis.
+    front: u16,
+    across: usize,
+    /// Whether the side face toward the eye is the low one across, if the eye sees one.
+    side: Option<bool>,
+}
+
+impl Outline {
+    fn new(array: [u16; 3], view_axis: usize, low: bool, across: usize, side: Option<bool>) -> Self {
+        let front = if low { 0 } else { array[view_axis] - 1 };
+        Self { array, view_axis, front, across, side }
+    }
+
+    /// Nodes behind the front layer on the side face: places beyond the front's.
+    fn deep(&self) -> u16 {
+        if self.side.is_some() { self.array[self.view_axis] - 1 } else { 0 }
+    }
+
+    /// How many places.
+    fn places(&self) -> u16 {
+        self.array[self.across] + self.deep()
+    }
+
+    /// The place of node `c` on the side face toward the eye, counted from
+    /// the front, if it lies there behind the front layer.
+    fn side_place(&self, c: [u16; 3]) -> Option<usize> {
+        let depth = c[self.view_axis].abs_diff(self.front);
+        let edge = if self.side? { 0 } else { self.array[self.across] - 1 };
+        (depth > 0 && c[self.across] == edge).then_some(usize::from(depth))
+    }
+
+    /// The place of the node that creates the rays entering node `c`: its
+    /// own on the side face, else that of the front node in its column.
+    fn place_of_ray(&self, c: [u16; 3]) -> u16 {
+        let front = c[self.across] + if self.side == Some(true) { self.deep() } else { 0 };
+        match (self.side, self.side_place(c)) {
+            (Some(true), Some(depth)) => self.deep() - depth as u16,
+            (Some(false), Some(depth)) => self.array[self.across] - 1 + depth as u16,
+            _ => front,
+        }
+    }
+
+    /// The place of node `c`, if it creates rays.
+    fn place_of_node(&self, c: [u16; 3]) -> Option<usize> {
+        (c[self.view_axis] == self.front || self.side_place(c).is_some())
+            .then(|| usize::from(self.place_of_ray(c)))
+    }
+}
+
+/// The array axis, other than `view_axis`, that runs across `basis`'s image
+/// (the one its step to the right moves along more).
+pub fn across_axis(basis: &PixelBasis, view_axis: usize) -> usize {
+    let others = [(view_axis + 1) % 3, (view_axis + 2) % 3];
+    let (a, b) = (others[0].min(others[1]), others[0].max(others[1]));
+    if basis.du[b].abs() > basis.du[a].abs() { b } else { a }
+}
+
+/// Whether the grid's face across `axis` that the eye sees is the low one,
+/// or `None` if the eye lies within the grid's extent along `axis` (then no
+/// ray enters through either).
+pub fn side_toward_eye(eye: [f64; 3], grid: [u16; 3], axis: usize) -> Option<bool> {
+    let g = f64::from(grid[axis]);
+    if eye[axis] < 0.0 {
+        Some(true)
+    } else if eye[axis] > g {
+        Some(false)
+    } else {
+        None
+    }
 }
 
 /// Where entry tiles create the rays for an eye at `eye`: `None` with the
@@ -99,23 +226,6 @@ pub fn entry_cells(camera: &CameraMsg, grid: &Grid, size: [u16; 2]) -> Vec<Optio
             Some(DigitalLine::enter(&line, grid)?.cell())
         })
         .collect()
-}
-
-/// Which of the array axes `a` and `b` runs across the image (its coordinate
-/// changes more often from a pixel to the next one in a row), and which down.
-fn image_axes(coords: &[Option<[u16; 3]>], w: usize, a: usize, b: usize) -> (usize, usize) {
-    let (mut across, mut down) = ([0u64; 2], [0u64; 2]);
-    for (i, c) in coords.iter().enumerate() {
-        let Some(c) = c else { continue };
-        let right = if (i + 1) % w != 0 { coords.get(i + 1).copied().flatten() } else { None };
-        let below = coords.get(i + w).copied().flatten();
-        for (k, axis) in [a, b].into_iter().enumerate() {
-            across[k] += right.is_some_and(|r| r[axis] != c[axis]) as u64;
-            down[k] += below.is_some_and(|r| r[axis] != c[axis]) as u64;
-        }
-    }
-    // a across and b down, or the other way round: whichever explains more changes.
-    if across[0] + down[1] >= across[1] + down[0] { (a, b) } else { (b, a) }
 }
 
 /// Splits `len` image lines (columns or rows) into `n` contiguous bands, one
@@ -241,15 +351,46 @@ mod tests {
         }
     }
 
-    /// Every pixel in one tile, only the front layer creating rays, and most
+    #[test]
+    fn seen_at_an_angle_the_side_face_toward_the_eye_creates_its_own_rays() {
+        let mut scene = Scene::random(10, 1, 1.0, [16; 3]).unwrap();
+        let size = [64, 48];
+        let even =
+            [[4, 4, 4], [2, 3, 1], [1, 1, 5], [3, 2, 2]].map(|a| Partition::even(scene.grid, a, 2).unwrap());
+        let jagged = [[4, 4, 4], [3, 2, 2]].map(|a| jagged(Partition::even(scene.grid, a, 2).unwrap()));
+        let mut staggered = Partition::even(scene.grid, [3, 2, 4], 2).unwrap();
+        staggered.row_cuts = Some((0..6).map(|r| vec![0, 2 + r, 6 + r, 9 + r, 16]).collect());
+        let partitions: Vec<_> = even.into_iter().chain(jagged).chain([staggered]).collect();
+        // The default view turned about the vertical through the grid's
+        // centre, far enough that the eye is beyond the face x = 0 or x = 16
+        // but still looks mostly along z.
+        let straight = scene.camera();
+        for degrees in [-40.0f64, 35.0] {
+            let (s, c) = degrees.to_radians().sin_cos();
+            let mut cam = straight;
+            let [dx, dz] = [straight.eye[0] - 8.0, straight.eye[2] - 8.0];
+            cam.eye = [8.0 + c * dx + s * dz, straight.eye[1], 8.0 - s * dx + c * dz];
+            assert!(cam.eye[0] < 0.0 || cam.eye[0] > 16.0, "{:?}", cam.eye);
+            scene.camera = Some(cam);
+            let basis = PixelBasis::new(&scene.camera(), size[0], size[1]);
+            for p in &partitions {
+                front_tiles_hold(&scene, &basis, p, size);
+            }
+        }
+    }
+
+    /// Every pixel in one tile, only the front layer (z = 0: the eye is at
+    /// negative z) and the side face toward the eye creating rays, and most
     /// rays created by the node whose box they enter.
     fn front_tiles_hold(scene: &Scene, basis: &PixelBasis, p: &Partition, size: [u16; 2]) {
         let array = p.array;
         let t = entry_tiles(basis, scene.grid, p, 2, size);
         assert!(covers_once(&t, size), "{array:?}: {t:?}");
-        // Only the front layer (z = 0, the eye is at negative z) creates rays.
+        let side =
+            |c: [u16; 3]| (basis.eye[0] < 0.0 && c[0] == 0) || (basis.eye[0] > 16.0 && c[0] == array[0] - 1);
         for (id, tile) in t.iter().enumerate() {
-            if p.coord(id)[2] != 0 {
+            let c = p.coord(id);
+            if c[2] != 0 && !side(c) {
                 assert_eq!(*tile, [0; 4], "{array:?}: node {id}");
             }
         }
