@@ -52,8 +52,8 @@ pub fn floor(map: &CostMap, array: [u16; 3], driving_axis: u8) -> Result<Option<
 /// [`floor`], told a partition of the family (`member`, over the same grid,
 /// array and driving axis), whose rows cut on their own bound the floor from
 /// above: a rectangle whose row must cost more than that can be in no
-/// partition that reaches the floor, so its row is not cut but only bounded
-/// ([`LayerSums::table_from`]). The floor and its partition are
+/// partition that reaches the floor, so its row is searched only below that
+/// cost, or not at all where its layers alone say so. The floor and its partition are
 /// [`floor`]'s. On the paper's scene over 8x8x8 (a preview's map, 256x256)
 /// this took the table from 7.8e9 to 4.1e9 instructions (callgrind): a wide
 /// rectangle holds several rows' work.
