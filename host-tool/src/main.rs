@@ -63,8 +63,9 @@ enum InitialMode {
     Parallel,
     /// The node holding the eye creates all of them.
     Eye,
-    /// The nodes on the face toward the eye create the rays entering through
-    /// their part of it, so rays start where they are traced (beyond the paper).
+    /// The nodes on the face toward the eye, and on a side face it sees at an
+    /// angle, create the rays entering through their part of it, so rays
+    /// start where they are traced (beyond the paper).
     Entry,
 }
 

@@ -76,6 +76,31 @@ fn image_is_bit_identical_across_arrays_and_initial_ray_modes() {
 }
 
 #[test]
+fn side_faces_creating_their_own_rays_keep_the_image_bit_identical() {
+    let mut s = scene(0.6, 3);
+    let size = [40, 32];
+    // Above the grid, above and to one side, and below and to the other:
+    // the top, a side and the bottom face create rays of their own (the eye
+    // looks mostly along z).
+    for eye in [[8.0, 26.0, -16.0], [-9.0, 22.0, -16.0], [27.0, -8.0, -16.0]] {
+        let mut cam = s.camera();
+        cam.eye = eye;
+        s.camera = Some(cam);
+        assert_eq!(host_tool::plan::partition::view_axis(&s), 2, "{eye:?}");
+        let basis = host_tool::plan::camera::PixelBasis::new(&s.camera(), size[0], size[1]);
+        let cells =
+            host_tool::plan::entry::entry_cells(&basis.msg(), &node_fw::Grid::new(s.grid).unwrap(), size);
+        let across = host_tool::plan::entry::across_axis(&basis, 2);
+        assert!(host_tool::plan::entry::side_face(&cells, eye, s.grid, 2, across).is_some(), "{eye:?}");
+        let want = direct::render(&s, size[0], size[1]).unwrap();
+        for array in [[2, 2, 2], [4, 4, 4], [3, 2, 5]] {
+            let r = render(&s, array, Initial::Entry, size);
+            assert!(r.frame.sums == want.sums, "{eye:?} {array:?}: image differs from the single loop");
+        }
+    }
+}
+
+#[test]
 fn depth_two_queues_never_deadlock_or_drop() {
     // Strongly reflective: long ray trees bouncing between nodes in every direction.
     let s = scene(0.9, 6);

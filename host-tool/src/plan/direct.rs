@@ -14,6 +14,7 @@ use node_fw::{limits::Scalar, sphere::Hit};
 use crate::error::{HostError, input};
 use crate::plan::camera::PixelBasis;
 use crate::plan::cost_map::CostMap;
+use crate::plan::entry;
 use crate::scene::Scene;
 use crate::scene::occupancy::occupancy_msgs;
 use node_fw::occupancy::{Occupancy, near_the_end};
@@ -107,8 +108,8 @@ pub fn cost_map(
 
 /// Charges each initial ray of a `size` image: with `creation` (entry
 /// tiles), its creation where the tiles have it created, and its way from
-/// there to the cube where it enters: on the side face toward the eye
-/// across the image the entry cube itself, elsewhere the cube on the grid's
+/// there to the cube where it enters: on the side face that creates its own
+/// rays the entry cube itself, elsewhere the cube on the grid's
 /// face toward the eye in its entry cube's row, whence it goes along the
 /// view axis ([`crate::plan::entry`]). Without, its receipt where it enters.
 /// Rays that miss the grid are not charged.
@@ -125,9 +126,9 @@ pub fn add_initial_rays(
     let basis = PixelBasis::new(&scene.camera(), width, height);
     let camera = basis.msg();
     let hop = HopPrice::new(cost, bytes);
-    let creators = creation.then(|| Creators::of(scene, &basis)).flatten();
-    for (i, cell) in crate::plan::entry::entry_cells(&camera, &grid, [width, height]).into_iter().enumerate()
-    {
+    let cells = crate::plan::entry::entry_cells(&camera, &grid, [width, height]);
+    let creators = creation.then(|| Creators::of(scene, &basis, &cells)).flatten();
+    for (i, cell) in cells.into_iter().enumerate() {
         let Some(cell) = cell else { continue };
         if let Some(creators) = &creators {
             let mut at = creators.creator(cell);
@@ -166,24 +167,25 @@ struct Creators {
     view_axis: usize,
     /// The layer of cubes on the grid's face toward the eye along the view axis.
     front: i32,
-    /// The side face toward the eye across the image, if the eye sees one:
-    /// its axis and its layer of cubes.
+    /// The side face that creates its own rays ([`entry::side_face`]), if
+    /// any: its axis and its layer of cubes.
     side: Option<(usize, i32)>,
 }
 
 impl Creators {
-    fn of(scene: &Scene, basis: &PixelBasis) -> Option<Self> {
+    /// For the camera `basis` and each pixel's entry cube `cells`.
+    fn of(scene: &Scene, basis: &PixelBasis, cells: &[Option<[i32; 3]>]) -> Option<Self> {
         let view_axis = usize::from(crate::plan::partition::view_axis(scene));
         let g = scene.grid.map(i32::from);
-        let low = crate::plan::entry::eye_on_low_side(basis.eye, scene.grid, view_axis)?;
-        let across = crate::plan::entry::across_axis(basis, view_axis);
-        let side = crate::plan::entry::side_toward_eye(basis.eye, scene.grid, across)
-            .map(|low| (across, if low { 0 } else { g[across] - 1 }));
+        let low = entry::eye_on_low_side(basis.eye, scene.grid, view_axis)?;
+        let across = entry::across_axis(basis, view_axis);
+        let side = entry::side_face(cells, basis.eye, scene.grid, view_axis, across)
+            .map(|(axis, low)| (axis, if low { 0 } else { g[axis] - 1 }));
         Some(Self { view_axis, front: if low { 0 } else { g[view_axis] - 1 }, side })
     }
 
     /// The cube where the ray entering at `cell` is created: `cell` itself
-    /// on the side face toward the eye, else the front face's cube in its row.
+    /// on the side face that creates its own, else the front face's cube in its row.
     fn creator(&self, cell: [i32; 3]) -> [i32; 3] {
         if self.side.is_some_and(|(axis, layer)| cell[axis] == layer) {
             return cell;

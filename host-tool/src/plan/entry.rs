@@ -7,12 +7,12 @@
 //! the host can instead give each node on that face the sub-image that
 //! enters through its part of the face: rays then start (nearly always) on
 //! the node that traces them first. Seen at an angle, the grid also shows
-//! the eye a side face: the nodes on it are given the sub-images that enter
-//! through their parts of it, so those rays too start where they enter
-//! rather than on the front face, a hop per node between. Which node
-//! creates a ray changes nothing in the image; a ray that enters elsewhere
-//! (through the top or bottom face, or across a tile's rounded edge) is
-//! passed on as in the parallel mode.
+//! the eye a side face or two: the nodes on one of them ([`side_face`]) are
+//! given the sub-images that enter through their parts of it, so those rays
+//! too start where they enter rather than on the front face, a hop per node
+//! between. Which node creates a ray changes nothing in the image; a ray
+//! that enters elsewhere (through the other side face, or across a tile's
+//! rounded edge) is passed on as in the parallel mode.
 
 use link_proto::CameraMsg;
 use node_fw::camera::primary_line;
@@ -23,7 +23,7 @@ use crate::plan::partition::{Partition, tiles};
 
 /// A tile `[x0, y0, x1, y1)` per node for a `size` image: the nodes whose
 /// coordinate along `view_axis` is on the eye's side, and those on the side
-/// face toward the eye across the image ([`side_toward_eye`]), get the
+/// face that creates its own rays ([`side_face`]), get the
 /// pixels whose rays enter through their part of the grid's faces, the
 /// others none. The tiles cover every pixel once: a column's tile is that of
 /// the rays of most of the column, and pixels whose rays miss the grid go
@@ -40,28 +40,26 @@ pub fn entry_tiles(
     let Ok(cubes) = Grid::new(grid) else { return regular() };
     let Some(low) = eye_on_low_side(basis.eye, grid, view_axis) else { return regular() };
     let [w, h] = size.map(usize::from);
+    let cells = entry_cells(&basis.msg(), &cubes, size);
+    let across = across_axis(basis, view_axis);
+    let side = side_face(&cells, basis.eye, grid, view_axis, across);
     // The array coordinate of each pixel's entry node, or None for a miss.
-    let coords: Vec<Option<[u16; 3]>> = entry_cells(&basis.msg(), &cubes, size)
+    let coords: Vec<Option<[u16; 3]>> = cells
         .into_iter()
         .map(|cell| Some(partition.coord(partition.owner_of(cell?.map(|c| f64::from(c) + 0.5), grid))))
         .collect();
     if coords.iter().all(Option::is_none) {
         return regular();
     }
-    let across = across_axis(basis, view_axis);
-    let down = 3 - view_axis - across;
-    let outline =
-        Outline::new(partition.array, view_axis, low, across, side_toward_eye(basis.eye, grid, across));
+    let places = Places::new(partition.array, view_axis, low, across, side);
     let at = |x: usize, y: usize| coords.get(y * w + x).copied().flatten();
-    // Bands of image columns by their place on the outline, counting rows
-    // y0..y1; bands of image rows by the down coordinate, counting columns x0..x1.
+    // Bands of image columns by their place across the image, counting rows
+    // y0..y1; bands of image rows by their place down it, counting columns x0..x1.
     let col_bands = |y0: usize, y1: usize| {
-        bands(w, outline.places(), |x| {
-            (y0..y1).filter_map(move |y| at(x, y)).map(|c| outline.place_of_ray(c))
-        })
+        bands(w, places.count[0], |x| (y0..y1).filter_map(move |y| at(x, y)).map(|c| places.of_ray(c)[0]))
     };
     let row_bands = |x0: usize, x1: usize| {
-        bands(h, partition.array[down], |y| (x0..x1).filter_map(move |x| at(x, y)).map(|c| c[down]))
+        bands(h, places.count[1], |y| (x0..x1).filter_map(move |x| at(x, y)).map(|c| places.of_ray(c)[1]))
     };
     let (cols, rows) = (col_bands(0, h), row_bands(0, w));
     let tiling = |order: Order| {
@@ -71,11 +69,9 @@ pub fn entry_tiles(
             .then(|| rows.iter().map(|&(y0, y1)| col_bands(y0, y1)).collect::<Vec<_>>());
         (0..partition.len())
             .map(|id| {
-                let c = partition.coord(id);
-                let Some(place) = outline.place_of_node(c) else { return [0; 4] };
-                let j = usize::from(c[down]);
-                let col = cols_per_row.as_ref().map_or(cols[place], |per| per[j][place]);
-                let row = rows_per_col.as_ref().map_or(rows[j], |per| per[place][j]);
+                let Some([i, j]) = places.of_node(partition.coord(id)) else { return [0; 4] };
+                let col = cols_per_row.as_ref().map_or(cols[i], |per| per[j][i]);
+                let row = rows_per_col.as_ref().map_or(rows[j], |per| per[i][j]);
                 if col.0 == col.1 || row.0 == row.1 {
                     return [0; 4];
                 }
@@ -88,10 +84,10 @@ pub fn entry_tiles(
     let slab_axis = slab_axis.filter(|_| usize::from(partition.driving_axis) == view_axis);
     let order = match slab_axis {
         Some(a) if a == across => Order::RowsPerColumn,
-        Some(a) if a == down => Order::ColumnsPerRow,
+        Some(a) if a == 3 - view_axis - across => Order::ColumnsPerRow,
         _ => Order::Whole,
     };
-    if outline.side.is_none() {
+    if side.is_none() {
         return tiling(order);
     }
     // Seen at an angle, a node's part of a face is no rectangle in the
@@ -126,24 +122,63 @@ enum Order {
     ColumnsPerRow,
 }
 
-/// The grid's outline across the image as the eye sees it, a place per
+/// Where each node that creates rays sits in the image: a place across it
+/// (a band of columns) and a place down it (a band of rows). One of the two
+/// follows the grid's outline ([`Outline`]) along the axis of the side face
+/// that creates its own rays, if any; the other is the node's coordinate.
+struct Places {
+    outline: Outline,
+    /// Whether the outline runs down the image (the side face is its top or
+    /// bottom) rather than across it.
+    down: bool,
+    /// The other image axis's array axis.
+    plain: usize,
+    /// Places across and down.
+    count: [u16; 2],
+}
+
+impl Places {
+    fn new(array: [u16; 3], view_axis: usize, low: bool, across: usize, side: Option<(usize, bool)>) -> Self {
+        let other = 3 - view_axis - across;
+        let down = side.is_some_and(|(axis, _)| axis == other);
+        let (axis, plain) = if down { (other, across) } else { (across, other) };
+        let outline = Outline::new(array, view_axis, low, axis, side.map(|(_, low)| low));
+        let count = if down { [array[plain], outline.places()] } else { [outline.places(), array[plain]] };
+        Self { outline, down, plain, count }
+    }
+
+    /// The places of the node that creates the rays entering node `c`.
+    fn of_ray(&self, c: [u16; 3]) -> [u16; 2] {
+        let (on, plain) = (self.outline.place_of_ray(c), c[self.plain]);
+        if self.down { [plain, on] } else { [on, plain] }
+    }
+
+    /// The places of node `c`, if it creates rays.
+    fn of_node(&self, c: [u16; 3]) -> Option<[usize; 2]> {
+        self.outline.place_of_node(c)?;
+        Some(self.of_ray(c).map(usize::from))
+    }
+}
+
+/// The grid's outline along one image axis as the eye sees it, a place per
 /// node that creates rays: the nodes of the face toward the eye along the
-/// view axis, in order across the image, and beyond one end of them the
-/// nodes of the side face toward the eye, deeper ones further out.
+/// view axis, in order along `axis`, and beyond one end of them the nodes of
+/// the side face across `axis` toward the eye, deeper ones further out.
 struct Outline {
     array: [u16; 3],
     view_axis: usize,
     /// The front layer's coordinate along the view axis.
     front: u16,
-    across: usize,
-    /// Whether the side face toward the eye is the low one across, if the eye sees one.
+    axis: usize,
+    /// Whether the side face toward the eye is the low one along `axis`, if
+    /// it creates its own rays.
     side: Option<bool>,
 }
 
 impl Outline {
-    fn new(array: [u16; 3], view_axis: usize, low: bool, across: usize, side: Option<bool>) -> Self {
+    fn new(array: [u16; 3], view_axis: usize, low: bool, axis: usize, side: Option<bool>) -> Self {
         let front = if low { 0 } else { array[view_axis] - 1 };
-        Self { array, view_axis, front, across, side }
+        Self { array, view_axis, front, axis, side }
     }
 
     /// Nodes behind the front layer on the side face: places beyond the front's.
@@ -153,24 +188,24 @@ impl Outline {
 
     /// How many places.
     fn places(&self) -> u16 {
-        self.array[self.across] + self.deep()
+        self.array[self.axis] + self.deep()
     }
 
     /// The place of node `c` on the side face toward the eye, counted from
     /// the front, if it lies there behind the front layer.
     fn side_place(&self, c: [u16; 3]) -> Option<usize> {
         let depth = c[self.view_axis].abs_diff(self.front);
-        let edge = if self.side? { 0 } else { self.array[self.across] - 1 };
-        (depth > 0 && c[self.across] == edge).then_some(usize::from(depth))
+        let edge = if self.side? { 0 } else { self.array[self.axis] - 1 };
+        (depth > 0 && c[self.axis] == edge).then_some(usize::from(depth))
     }
 
     /// The place of the node that creates the rays entering node `c`: its
     /// own on the side face, else that of the front node in its column.
     fn place_of_ray(&self, c: [u16; 3]) -> u16 {
-        let front = c[self.across] + if self.side == Some(true) { self.deep() } else { 0 };
+        let front = c[self.axis] + if self.side == Some(true) { self.deep() } else { 0 };
         match (self.side, self.side_place(c)) {
             (Some(true), Some(depth)) => self.deep() - depth as u16,
-            (Some(false), Some(depth)) => self.array[self.across] - 1 + depth as u16,
+            (Some(false), Some(depth)) => self.array[self.axis] - 1 + depth as u16,
             _ => front,
         }
     }
@@ -188,6 +223,34 @@ pub fn across_axis(basis: &PixelBasis, view_axis: usize) -> usize {
     let others = [(view_axis + 1) % 3, (view_axis + 2) % 3];
     let (a, b) = (others[0].min(others[1]), others[0].max(others[1]));
     if basis.du[b].abs() > basis.du[a].abs() { b } else { a }
+}
+
+/// The side face whose nodes entry tiles let create the rays entering it
+/// (its axis, and whether it is the low one), for the eye at `eye` looking
+/// along `view_axis` with `across` running across the image, and each
+/// pixel's entry cube `cells`: the face across `across` toward the eye if
+/// any ray enters it, else the one across the third axis (the top or the
+/// bottom). A side face runs along one image axis, so only one can be given
+/// its own tiles; the cost map asks the same. Where rays enter both, the
+/// face across the image is the one to take, though fewer may enter it: on
+/// the sphereflake of `lab report tradeoff`, seen from above a corner, its
+/// frame took 3.21e6 cycles on 4x4x4 with the side across the image and
+/// 3.56e6 with the top, which more rays enter (3.67e6 with neither).
+pub fn side_face(
+    cells: &[Option<[i32; 3]>],
+    eye: [f64; 3],
+    grid: [u16; 3],
+    view_axis: usize,
+    across: usize,
+) -> Option<(usize, bool)> {
+    let low = eye_on_low_side(eye, grid, view_axis)?;
+    let front = if low { 0 } else { i32::from(grid[view_axis]) - 1 };
+    let entered = |axis: usize| {
+        let side_low = side_toward_eye(eye, grid, axis)?;
+        let edge = if side_low { 0 } else { i32::from(grid[axis]) - 1 };
+        cells.iter().flatten().any(|c| c[axis] == edge && c[view_axis] != front).then_some((axis, side_low))
+    };
+    entered(across).or_else(|| entered(3 - view_axis - across))
 }
 
 /// Whether the grid's face across `axis` that the eye sees is the low one,
@@ -379,6 +442,30 @@ mod tests {
         }
     }
 
+    #[test]
+    fn seen_from_above_the_top_face_creates_its_own_rays() {
+        let mut scene = Scene::random(10, 1, 1.0, [16; 3]).unwrap();
+        let size = [48, 64];
+        let partitions =
+            [[4, 4, 4], [2, 3, 1], [1, 4, 3], [3, 2, 2]].map(|a| Partition::even(scene.grid, a, 2).unwrap());
+        // Above the grid (y = 16), still looking mostly along z; and below
+        // it, turned a quarter, so that the bottom face runs across the image.
+        for (eye, up) in [([8.0, 27.0, -18.0], [0.0, 1.0, 0.0]), ([8.0, -11.0, -18.0], [1.0, 0.0, 0.0])] {
+            let mut cam = scene.camera();
+            (cam.eye, cam.up) = (eye, up);
+            scene.camera = Some(cam);
+            let basis = PixelBasis::new(&scene.camera(), size[0], size[1]);
+            let cells = entry_cells(&basis.msg(), &Grid::new(scene.grid).unwrap(), size);
+            assert_eq!(
+                side_face(&cells, basis.eye, scene.grid, 2, across_axis(&basis, 2)),
+                Some((1, eye[1] < 0.0))
+            );
+            for p in &partitions {
+                front_tiles_hold(&scene, &basis, p, size);
+            }
+        }
+    }
+
     /// Every pixel in one tile, only the front layer (z = 0: the eye is at
     /// negative z) and the side face toward the eye creating rays, and most
     /// rays created by the node whose box they enter.
@@ -386,8 +473,9 @@ mod tests {
         let array = p.array;
         let t = entry_tiles(basis, scene.grid, p, 2, size);
         assert!(covers_once(&t, size), "{array:?}: {t:?}");
-        let side =
-            |c: [u16; 3]| (basis.eye[0] < 0.0 && c[0] == 0) || (basis.eye[0] > 16.0 && c[0] == array[0] - 1);
+        let side = |c: [u16; 3]| {
+            (0..2).any(|a| (basis.eye[a] < 0.0 && c[a] == 0) || (basis.eye[a] > 16.0 && c[a] == array[a] - 1))
+        };
         for (id, tile) in t.iter().enumerate() {
             let c = p.coord(id);
             if c[2] != 0 && !side(c) {

@@ -14,8 +14,9 @@ pub enum Initial {
     Parallel,
     /// The node holding the eye creates all of them (Fig. 7 B).
     EyeNode,
-    /// The nodes on the face toward the eye create the rays that enter
-    /// through their part of it ([`crate::plan::entry`]; beyond the paper).
+    /// The nodes on the face toward the eye, and on a side face it sees at an
+    /// angle, create the rays that enter through their part of it
+    /// ([`crate::plan::entry`]; beyond the paper).
     Entry,
 }
 
