@@ -93,24 +93,29 @@ pub fn entry_tiles(
     // Seen at an angle, a node's part of a face is no rectangle in the
     // image, and rows along the view axis may be cut each on its own: of
     // the ways to cut, the one that leaves the most rays at home.
-    let at_home = |tiles: &[[u16; 4]]| -> usize {
-        let home = |id: usize, t: &[u16; 4]| {
-            let c = partition.coord(id);
-            let (xs, ys) = (usize::from(t[0])..usize::from(t[2]), usize::from(t[1])..usize::from(t[3]));
-            ys.flat_map(|y| xs.clone().map(move |x| (x, y))).filter(|&(x, y)| at(x, y) == Some(c)).count()
-        };
-        tiles.iter().enumerate().map(|(id, t)| home(id, t)).sum()
-    };
     let mut best = tiling(order);
-    let mut most = at_home(&best);
+    let mut most = at_home(&best, partition, &coords, w);
     for other in [Order::Whole, Order::RowsPerColumn, Order::ColumnsPerRow] {
         let tiles = tiling(other);
-        let home = at_home(&tiles);
+        let home = at_home(&tiles, partition, &coords, w);
         if home > most {
             (best, most) = (tiles, home);
         }
     }
     best
+}
+
+/// How many pixels of an image `w` wide `tiles` give to the node their ray
+/// enters (`coords`, per pixel, the entry node's array coordinate).
+fn at_home(tiles: &[[u16; 4]], partition: &Partition, coords: &[Option<[u16; 3]>], w: usize) -> usize {
+    let home = |id: usize, t: &[u16; 4]| {
+        let c = Some(partition.coord(id));
+        let (xs, ys) = (usize::from(t[0])..usize::from(t[2]), usize::from(t[1])..usize::from(t[3]));
+        ys.flat_map(|y| xs.clone().map(move |x| y * w + x))
+            .filter(|&i| coords.get(i).copied().flatten() == c)
+            .count()
+    };
+    tiles.iter().enumerate().map(|(id, t)| home(id, t)).sum()
 }
 
 /// How entry tiles cut the image: columns and rows each once, or the rows
@@ -200,7 +205,8 @@ impl Outline {
     }
 
     /// The place of the node that creates the rays entering node `c`: its
-    /// own on the side face, else that of the front node in its column.
+    /// own on the side face, else that of the front node in its line of
+    /// nodes along the view axis.
     fn place_of_ray(&self, c: [u16; 3]) -> u16 {
         let front = c[self.axis] + if self.side == Some(true) { self.deep() } else { 0 };
         match (self.side, self.side_place(c)) {
@@ -256,7 +262,7 @@ pub fn side_face(
 /// Whether the grid's face across `axis` that the eye sees is the low one,
 /// or `None` if the eye lies within the grid's extent along `axis` (then no
 /// ray enters through either).
-pub fn side_toward_eye(eye: [f64; 3], grid: [u16; 3], axis: usize) -> Option<bool> {
+fn side_toward_eye(eye: [f64; 3], grid: [u16; 3], axis: usize) -> Option<bool> {
     let g = f64::from(grid[axis]);
     if eye[axis] < 0.0 {
         Some(true)
