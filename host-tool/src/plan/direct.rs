@@ -126,7 +126,7 @@ pub fn add_initial_rays(
     let basis = PixelBasis::new(&scene.camera(), width, height);
     let camera = basis.msg();
     let hop = HopPrice::new(cost, bytes);
-    let cells = crate::plan::entry::entry_cells(&camera, &grid, [width, height]);
+    let cells = entry::entry_cells(&camera, &grid, [width, height]);
     let creators = creation.then(|| Creators::of(scene, &basis, &cells)).flatten();
     for (i, cell) in cells.into_iter().enumerate() {
         let Some(cell) = cell else { continue };
