@@ -216,10 +216,11 @@ impl LayerSums {
     fn table_from(&self, s0: usize, parts: usize, cap: u64, rows: &mut [u64]) {
         let [gs, gc, _] = self.g;
         let most = u128::from(cap) * parts as u128;
+        let (mut prefix, mut plane) = (vec![0u64; self.g[2] + 1], vec![0u64; self.g[2] + 1]);
         for s1 in s0 + 1..=gs {
             for c0 in 0..gc {
                 for c1 in c0 + 1..=gc {
-                    let (prefix, plane) = self.profile([s0, s1, c0, c1]);
+                    self.profile_into([s0, s1, c0, c1], &mut prefix, &mut plane);
                     let held = prefix.last().copied().unwrap_or(0);
                     rows[RowTable::key([gs, gc], 0, s1, c0, c1)] = if u128::from(held) > most {
                         held.div_ceil(parts as u64)
