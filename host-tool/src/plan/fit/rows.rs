@@ -97,8 +97,9 @@ pub fn row_cuts(rows: &[RowProfile], parts: usize) -> Vec<u16> {
     let parts = parts.clamp(1, n.max(1));
     // cost[i * (n + 1) + j]: what the part of layers i..j pays in the
     // busiest row, by running sums, tabled once (the search asks for each
-    // span many times), a row at a time: the local search tables this for
-    // every candidate, and the inner loop over j vectorises.
+    // span many times), a row at a time into buffers made once: the local
+    // search tables this for every candidate, and the inner loop over j
+    // then runs along contiguous memory.
     let mut cost = vec![0u64; (n + 1) * (n + 1)];
     let (mut sums, mut plane) = (vec![0u64; n + 1], vec![0u64; n + 1]);
     for r in rows {
