@@ -27,5 +27,6 @@ pub mod reference;
 pub mod results;
 pub mod scene;
 pub mod session;
+pub mod threads;
 
 pub use error::HostError;

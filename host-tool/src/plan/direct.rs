@@ -176,12 +176,11 @@ impl Creators {
     /// For the camera `basis` and each pixel's entry cube `cells`.
     fn of(scene: &Scene, basis: &PixelBasis, cells: &[Option<[i32; 3]>]) -> Option<Self> {
         let view_axis = usize::from(crate::plan::partition::view_axis(scene));
-        let g = scene.grid.map(i32::from);
         let low = entry::eye_on_low_side(basis.eye, scene.grid, view_axis)?;
         let across = entry::across_axis(basis, view_axis);
         let side = entry::side_face(cells, basis.eye, scene.grid, view_axis, across)
-            .map(|(axis, low)| (axis, if low { 0 } else { g[axis] - 1 }));
-        Some(Self { view_axis, front: if low { 0 } else { g[view_axis] - 1 }, side })
+            .map(|(axis, low)| (axis, entry::layer_of_face(scene.grid, axis, low)));
+        Some(Self { view_axis, front: entry::layer_of_face(scene.grid, view_axis, low), side })
     }
 
     /// The cube where the ray entering at `cell` is created: `cell` itself

@@ -95,7 +95,9 @@ pub fn entry_tiles(
     // the ways to cut, the one that leaves the most rays at home.
     let mut best = tiling(order);
     let mut most = at_home(&best, partition, &coords, w);
-    for other in [Order::Whole, Order::RowsPerColumn, Order::ColumnsPerRow] {
+    for other in
+        [Order::Whole, Order::RowsPerColumn, Order::ColumnsPerRow].into_iter().filter(|&o| o != order)
+    {
         let tiles = tiling(other);
         let home = at_home(&tiles, partition, &coords, w);
         if home > most {
@@ -250,13 +252,18 @@ pub fn side_face(
     across: usize,
 ) -> Option<(usize, bool)> {
     let low = eye_on_low_side(eye, grid, view_axis)?;
-    let front = if low { 0 } else { i32::from(grid[view_axis]) - 1 };
+    let front = layer_of_face(grid, view_axis, low);
     let entered = |axis: usize| {
         let side_low = side_toward_eye(eye, grid, axis)?;
-        let edge = if side_low { 0 } else { i32::from(grid[axis]) - 1 };
+        let edge = layer_of_face(grid, axis, side_low);
         cells.iter().flatten().any(|c| c[axis] == edge && c[view_axis] != front).then_some((axis, side_low))
     };
     entered(across).or_else(|| entered(3 - view_axis - across))
+}
+
+/// The layer of cubes along `axis` on the grid's low face, or its high one.
+pub fn layer_of_face(grid: [u16; 3], axis: usize, low: bool) -> i32 {
+    if low { 0 } else { i32::from(grid[axis]) - 1 }
 }
 
 /// Whether the grid's face across `axis` that the eye sees is the low one,
@@ -399,15 +406,19 @@ mod tests {
         p
     }
 
+    /// Even boxes over a few arrays, and two with columns cut per slab.
+    fn even_and_jagged(grid: [u16; 3]) -> Vec<Partition> {
+        let even = [[4, 4, 4], [2, 3, 1], [1, 1, 5], [3, 2, 2]].map(|a| Partition::even(grid, a, 2).unwrap());
+        let jagged = [[4, 4, 4], [3, 2, 2]].map(|a| jagged(Partition::even(grid, a, 2).unwrap()));
+        assert!(jagged.iter().all(|p| p.slab_cuts.as_ref().is_some_and(|s| s[0] != s[1])));
+        even.into_iter().chain(jagged).collect()
+    }
+
     #[test]
     fn front_nodes_share_the_image_and_rays_start_on_their_entry_node() {
         let mut scene = Scene::random(10, 1, 1.0, [16; 3]).unwrap();
         let size = [64, 48];
-        let even =
-            [[4, 4, 4], [2, 3, 1], [1, 1, 5], [3, 2, 2]].map(|a| Partition::even(scene.grid, a, 2).unwrap());
-        let jagged = [[4, 4, 4], [3, 2, 2]].map(|a| jagged(Partition::even(scene.grid, a, 2).unwrap()));
-        assert!(jagged.iter().all(|p| p.slab_cuts.as_ref().is_some_and(|s| s[0] != s[1])));
-        let partitions: Vec<_> = even.into_iter().chain(jagged).collect();
+        let partitions = even_and_jagged(scene.grid);
         // Upright, and turned a quarter so that the image's rows run along x.
         for up in [[0.0, 1.0, 0.0], [1.0, 0.0, 0.0]] {
             let mut cam = scene.camera();
@@ -424,12 +435,9 @@ mod tests {
     fn seen_at_an_angle_the_side_face_toward_the_eye_creates_its_own_rays() {
         let mut scene = Scene::random(10, 1, 1.0, [16; 3]).unwrap();
         let size = [64, 48];
-        let even =
-            [[4, 4, 4], [2, 3, 1], [1, 1, 5], [3, 2, 2]].map(|a| Partition::even(scene.grid, a, 2).unwrap());
-        let jagged = [[4, 4, 4], [3, 2, 2]].map(|a| jagged(Partition::even(scene.grid, a, 2).unwrap()));
         let mut staggered = Partition::even(scene.grid, [3, 2, 4], 2).unwrap();
         staggered.row_cuts = Some((0..6).map(|r| vec![0, 2 + r, 6 + r, 9 + r, 16]).collect());
-        let partitions: Vec<_> = even.into_iter().chain(jagged).chain([staggered]).collect();
+        let partitions: Vec<_> = even_and_jagged(scene.grid).into_iter().chain([staggered]).collect();
         // The default view turned about the vertical through the grid's
         // centre, far enough that the eye is beyond the face x = 0 or x = 16
         // but still looks mostly along z.

@@ -13,7 +13,6 @@
 //! the wire's resolution sends nothing); the subregions stay carried or
 //! planned as above.
 
-use std::thread::ScopedJoinHandle;
 use std::time::{Duration, Instant};
 
 use crate::error::HostError;
@@ -25,6 +24,7 @@ use crate::results::history::after_slides;
 use crate::scene::Scene;
 use crate::scene::path::CameraPath;
 use crate::session::transport::Transport;
+use crate::threads::join;
 use link_proto::{Capacity, SphereMsg};
 
 /// Where each frame after the first starts.
@@ -151,9 +151,4 @@ pub fn run<T: Transport>(
         }
         Ok(())
     })
-}
-
-/// The plan a thread made; a panic there goes on here, as if planned here.
-fn join(planning: ScopedJoinHandle<'_, Result<Planned, HostError>>) -> Result<Planned, HostError> {
-    planning.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic))
 }

@@ -21,6 +21,7 @@ use link_proto::Boundaries;
 use crate::error::{HostError, input};
 use crate::plan::cost_map::CostMap;
 use crate::plan::partition::Partition;
+use crate::threads::join;
 use price::Pricing;
 
 impl Partition {
@@ -208,11 +209,6 @@ impl Partition {
             a
         }
     }
-}
-
-/// What a search on another thread found; a panic there goes on here.
-fn join<T>(search: std::thread::ScopedJoinHandle<'_, T>) -> T {
-    search.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic))
 }
 
 /// A fit's score: the busiest node's cost, then the sum of squares.
