@@ -44,26 +44,42 @@ const fn brr(pclk: u32, baud: u32) -> Brr {
     }
 }
 
-/// Neighbour U(S)ARTs on APB1 (USART2, UART4, UART5, UART7).
+/// Neighbour U(S)ARTs on APB1 (USART2, UART4, UART5).
 pub const NEIGHBOUR_APB1: Brr = brr(FROM_HSE.pclk1(), NEIGHBOUR_BAUD);
-/// Neighbour U(S)ARTs on APB2 (USART1, USART6).
+/// Neighbour U(S)ARTs on APB2 (USART1, USART6, UART10).
 pub const NEIGHBOUR_APB2: Brr = brr(FROM_HSE.pclk2(), NEIGHBOUR_BAUD);
 /// The host USART3 (APB1).
 pub const HOST_APB1: Brr = brr(FROM_HSE.pclk1(), HOST_BAUD);
 
 /// The DMA streams of the neighbour U(S)ARTs, in port order (+X USART1, -X
-/// USART2, +Y UART4, -Y UART5, +Z USART6, -Z UART7), from RM0430's request
-/// mapping. DMA1 gets the four on APB1, all eight of its streams; USART1
-/// and USART6 take four of DMA2's. The host's USART3 is left to its
-/// interrupt: its requests reach only DMA1 streams 1, 3 and 4, which UART7
-/// and UART4 hold.
+/// USART2, +Y UART4, -Y UART5, +Z USART6, -Z UART10), from RM0430's request
+/// mapping. The three on APB1 take six of DMA1's streams; USART1, USART6
+/// and UART10, on APB2, six of DMA2's.
+///
+/// -Z is UART10 rather than UART7 for the host's sake: USART3's requests
+/// reach only DMA1's streams 1, 3 and 4, and UART7's reach only streams 1
+/// and 3, so with UART7 on the board the host link could have no stream.
 pub const NEIGHBOUR_DMA: [UartStreams; 6] = [
     UartStreams { rx: Stream::dma2(2, 4), tx: Stream::dma2(7, 4) },
     UartStreams { rx: Stream::dma1(5, 4), tx: Stream::dma1(6, 4) },
     UartStreams { rx: Stream::dma1(2, 4), tx: Stream::dma1(4, 4) },
     UartStreams { rx: Stream::dma1(0, 4), tx: Stream::dma1(7, 8) },
     UartStreams { rx: Stream::dma2(1, 5), tx: Stream::dma2(6, 5) },
-    UartStreams { rx: Stream::dma1(3, 5), tx: Stream::dma1(1, 5) },
+    UartStreams { rx: Stream::dma2(0, 5), tx: Stream::dma2(5, 9) },
 ];
 
-const _: () = assert!(crate::dma::distinct(&NEIGHBOUR_DMA), "two directions share a DMA stream");
+/// The host USART3's DMA streams (DMA1 streams 1 and 3, channel 4).
+pub const HOST_DMA: UartStreams = UartStreams { rx: Stream::dma1(1, 4), tx: Stream::dma1(3, 4) };
+
+/// Every link's DMA streams: the neighbours' in port order, then the host's.
+pub const LINK_DMA: [UartStreams; 7] = [
+    NEIGHBOUR_DMA[0],
+    NEIGHBOUR_DMA[1],
+    NEIGHBOUR_DMA[2],
+    NEIGHBOUR_DMA[3],
+    NEIGHBOUR_DMA[4],
+    NEIGHBOUR_DMA[5],
+    HOST_DMA,
+];
+
+const _: () = assert!(crate::dma::distinct(&LINK_DMA), "two directions share a DMA stream");

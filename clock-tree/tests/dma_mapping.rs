@@ -3,12 +3,13 @@
 //! through the crate's tables).
 
 use clock_tree::dma::{self, Controller, Stream, UartStreams};
-use clock_tree::nucleo_f413zh::NEIGHBOUR_DMA;
+use clock_tree::nucleo_f413zh::{LINK_DMA, NEIGHBOUR_DMA};
 
-/// Every request of the seven U(S)ARTs the board uses, as RM0430's "DMA1
-/// request mapping" and "DMA2 request mapping" tables give them for the
-/// STM32F413: (controller, stream, channel, peripheral, receive).
-const REQUESTS: [(u8, u8, u8, &str, bool); 20] = [
+/// Every request of the eight U(S)ARTs the board could use, as RM0430's
+/// "DMA1 request mapping" and "DMA2 request mapping" tables give them for
+/// the STM32F413: (controller, stream, channel, peripheral, receive).
+/// UART10's are also embassy's and stm32f4xx-hal's maps for the F413.
+const REQUESTS: [(u8, u8, u8, &str, bool); 24] = [
     (1, 0, 4, "UART5", true),
     (1, 1, 4, "USART3", true),
     (1, 1, 5, "UART7", false),
@@ -29,16 +30,23 @@ const REQUESTS: [(u8, u8, u8, &str, bool); 20] = [
     (2, 7, 4, "USART1", false),
     (2, 7, 5, "USART6", false),
     (1, 0, 5, "UART8", false),
+    (2, 0, 5, "UART10", true),
+    (2, 3, 9, "UART10", true),
+    (2, 5, 9, "UART10", false),
+    (2, 7, 6, "UART10", false),
 ];
 
-/// The neighbour ports' U(S)ARTs in port order, and whether each is on APB1.
-const PORTS: [(&str, bool); 6] = [
+/// The links' U(S)ARTs in [`LINK_DMA`]'s order (the neighbours' in port
+/// order, then the host's), and whether each is on APB1 (RM0430's memory
+/// map: UART10 sits at 0x4001_1C00, on APB2).
+const PORTS: [(&str, bool); 7] = [
     ("USART1", false),
     ("USART2", true),
     ("UART4", true),
     ("UART5", true),
     ("USART6", false),
-    ("UART7", true),
+    ("UART10", false),
+    ("USART3", true),
 ];
 
 fn request_of(s: Stream) -> Option<(&'static str, bool)> {
@@ -50,8 +58,9 @@ fn request_of(s: Stream) -> Option<(&'static str, bool)> {
 }
 
 #[test]
-fn each_neighbour_direction_has_its_uarts_request() {
-    for (streams, (uart, _)) in NEIGHBOUR_DMA.iter().zip(PORTS) {
+fn each_link_direction_has_its_uarts_request() {
+    assert_eq!(LINK_DMA[..6], NEIGHBOUR_DMA);
+    for (streams, (uart, _)) in LINK_DMA.iter().zip(PORTS) {
         assert_eq!(request_of(streams.rx), Some((uart, true)), "{uart} RX on {:?}", streams.rx);
         assert_eq!(request_of(streams.tx), Some((uart, false)), "{uart} TX on {:?}", streams.tx);
     }
@@ -60,7 +69,7 @@ fn each_neighbour_direction_has_its_uarts_request() {
 #[test]
 fn dma1_serves_only_apb1() {
     // RM0430, "DMA1 and DMA2": DMA1's peripheral port is on APB1 only.
-    for (streams, (uart, apb1)) in NEIGHBOUR_DMA.iter().zip(PORTS) {
+    for (streams, (uart, apb1)) in LINK_DMA.iter().zip(PORTS) {
         for s in [streams.rx, streams.tx] {
             assert!(apb1 || s.controller == Controller::Dma2, "{uart} on APB2 but {:?}", s);
         }
@@ -70,14 +79,14 @@ fn dma1_serves_only_apb1() {
 #[test]
 fn no_two_directions_share_a_stream() {
     let mut seen = Vec::new();
-    for s in NEIGHBOUR_DMA.iter().flat_map(|u| [u.rx, u.tx]) {
+    for s in LINK_DMA.iter().flat_map(|u| [u.rx, u.tx]) {
         let key = (s.controller == Controller::Dma1, s.stream);
         assert!(!seen.contains(&key), "{:?} twice", s);
         seen.push(key);
     }
-    assert!(dma::distinct(&NEIGHBOUR_DMA));
-    // And the check sees a clash: USART3's receive request on the stream UART7 sends on.
-    let clash = [NEIGHBOUR_DMA[5], UartStreams { rx: Stream::dma1(1, 4), tx: Stream::dma1(3, 4) }];
+    assert!(dma::distinct(&LINK_DMA));
+    // And the check sees a clash: USART3 sending on the stream UART4 sends on.
+    let clash = [NEIGHBOUR_DMA[2], UartStreams { rx: Stream::dma1(1, 4), tx: Stream::dma1(4, 7) }];
     assert!(!dma::distinct(&clash));
     // The same stream number on the other controller is no clash.
     let apart = [UartStreams { rx: Stream::dma1(1, 4), tx: Stream::dma2(1, 5) }];
@@ -87,7 +96,7 @@ fn no_two_directions_share_a_stream() {
 #[test]
 fn the_channel_fits_chsel() {
     // RM0430, DMA_SxCR: CHSEL[3:0] (bits 28:25) on the F413, streams 0-7.
-    for s in NEIGHBOUR_DMA.iter().flat_map(|u| [u.rx, u.tx]) {
+    for s in LINK_DMA.iter().flat_map(|u| [u.rx, u.tx]) {
         assert!(s.channel < 16 && s.stream < 8, "{:?}", s);
     }
 }

@@ -112,7 +112,7 @@ pub enum TransferChoice {
     Polled,
     /// An interrupt per byte (51 cycles a byte).
     Interrupt,
-    /// DMA (no CPU cycles per byte, 65 a frame).
+    /// DMA (no CPU cycles per byte, 70 a frame).
     Dma,
 }
 

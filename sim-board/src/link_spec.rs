@@ -33,9 +33,10 @@ impl Transfer {
     ///
     /// - Interrupt: 12 cycles to enter and 10 to leave a handler (Cortex-M3
     ///   and M4 without floating-point context, ARM's TRMs), and the STM32
-    ///   firmware's handler, counted instruction by instruction on its path
-    ///   in the stm32f413 image's disassembly (`llvm-objdump -d` of
-    ///   `target/firmware/node-stm32f413.elf` at `USART1`, which
+    ///   firmware's handler (the `interrupt-links` build's and the emulated
+    ///   board's), counted instruction by instruction on its path in the
+    ///   netduinoplus2 image's disassembly (`llvm-objdump -d` of
+    ///   `target/firmware/node-netduinoplus2.elf` at `USART3`, which
     ///   `scripts/firmware.sh` builds, and whose size it holds): 32
     ///   instructions for a byte received (the handler's entry, the status
     ///   register read once, the data register, the byte into the ring, the
@@ -66,10 +67,12 @@ impl Transfer {
     /// - DMA: a frame goes as a transfer of the send stream (frames queued
     ///   together go as one, which this charges as one each: an upper
     ///   bound). Its completion interrupt hands the sent bytes back and
-    ///   starts the next transfer: 43 instructions on that path in the
-    ///   stm32f413 image (`llvm-objdump -d` at `DMA2_STREAM7`, the +X
-    ///   link's send stream; the `it`-skipped one counted), 65 cycles with
-    ///   the exception's 22. `scripts/firmware.sh` holds the handler's
+    ///   starts the next transfer: 43 to 48 instructions on that path in
+    ///   the stm32f413 image (`llvm-objdump -d` at `DMA2_STREAM7`, the +X
+    ///   link's send stream, and the other six; the `it`-skipped one
+    ///   counted; the links whose rings lie 4 KiB or more into their array
+    ///   build the address in five more), the longest 70 cycles with the
+    ///   exception's 22. `scripts/firmware.sh` holds every handler's
     ///   size. The loop's start of an idle stream takes the same path
     ///   instead of the handler, and a receive stream's interrupt comes
     ///   once every 1 024 bytes (about 0.04 cycles a byte, not charged).
@@ -78,7 +81,7 @@ impl Transfer {
     pub const fn cycles_per_frame(self) -> u64 {
         match self {
             Transfer::Polled | Transfer::Interrupt | Transfer::Free => 0,
-            Transfer::Dma => 65,
+            Transfer::Dma => 70,
         }
     }
 
@@ -132,10 +135,10 @@ pub enum LinkPreset {
     /// NUCLEO-F413ZH boards as the firmware configures them
     /// ([`clock_tree::nucleo_f413zh`]): the core at its full 100 MHz from the
     /// PLL, neighbour USARTs at 3.125 Mbaud (the faster of the two rates
-    /// near 3 Mbaud that both of its buses divide to exactly) moved by DMA,
-    /// and the host link through the ST-LINK's virtual COM port at
-    /// 921 600 baud (a rate its bridge takes; set `--host-baud` to yours)
-    /// with a byte interrupt (its DMA streams are the neighbours').
+    /// near 3 Mbaud that both of its buses divide to exactly), and the host
+    /// link through the ST-LINK's virtual COM port at 921 600 baud (a rate
+    /// its bridge takes; set `--host-baud` to yours), every link's bytes
+    /// moved by DMA.
     #[default]
     F413,
     /// The links the board charged before presets: 25 cycles a byte (40 Mbaud
@@ -226,9 +229,7 @@ impl LinkPreset {
         let n = self.neighbour();
         match self {
             // A board's host channel holds its window.
-            LinkPreset::F413 => {
-                LinkSpec { baud: nucleo::HOST_BAUD as u64, transfer: Transfer::Interrupt, ..n }
-            }
+            LinkPreset::F413 => LinkSpec { baud: nucleo::HOST_BAUD as u64, ..n },
             LinkPreset::Emulated => n,
             LinkPreset::Ideal => LinkSpec { capacity: 64, ..n },
         }
@@ -253,15 +254,20 @@ mod tests {
     }
 
     #[test]
-    fn the_boards_move_neighbour_bytes_by_dma_and_host_bytes_by_interrupt() {
+    fn the_boards_move_every_links_bytes_by_dma() {
         // As the stm32f413 image does (firmware/src/board/dma_link.rs).
         assert_eq!(LinkPreset::F413.neighbour().transfer, Transfer::Dma);
-        assert_eq!(LinkPreset::F413.host().transfer, Transfer::Interrupt);
+        assert_eq!(LinkPreset::F413.host().transfer, Transfer::Dma);
         let (n, h) = (LinkPreset::F413.neighbour().model(), LinkPreset::F413.host().model());
-        assert_eq!((n.byte_cpu, n.frame_cpu), (0, 65));
+        assert_eq!((n.byte_cpu, n.frame_cpu), (0, 70));
         // An interrupt per run starts at its entry and exit: more than 22.
         assert!(n.frame_cpu > 22);
-        assert_eq!((h.byte_cpu, h.frame_cpu), (51, 0));
+        assert_eq!((h.byte_cpu, h.frame_cpu), (0, 70));
+        // Only the line rate tells the host link apart.
+        assert_eq!(
+            LinkSpec { baud: LinkPreset::F413.neighbour().baud, ..LinkPreset::F413.host() },
+            LinkPreset::F413.neighbour()
+        );
     }
 
     #[test]

@@ -1,6 +1,6 @@
-//! Neighbour links moved by DMA: the NUCLEO-F413ZH image's six neighbour
-//! U(S)ARTs. (The host's USART3 stays on its interrupt: its streams are
-//! taken, [`clock_tree::nucleo_f413zh::NEIGHBOUR_DMA`] says which.)
+//! Links moved by DMA: the NUCLEO-F413ZH image's seven U(S)ARTs, the six
+//! neighbours' and the host's ([`clock_tree::nucleo_f413zh::LINK_DMA`] says
+//! which streams).
 //!
 //! An interrupt a byte costs a board about 51 cycles at each end of a link,
 //! more than a frame's own handling of that byte (docs/scaling.md). A DMA

@@ -43,8 +43,9 @@ pub struct DirectImage {
 }
 
 /// The CPU a board spends on each byte of a frame it sends or receives, on
-/// its neighbour and its host links: none where DMA moves them (the `ideal`
-/// links), 51 cycles where an interrupt takes each byte (`f413`). A ray's
+/// its neighbour and its host links: none where DMA moves them (`f413`) or
+/// on the `ideal` links, 51 cycles where an interrupt takes each byte
+/// (`--transfer interrupt`). A ray's
 /// frame of 40 bytes then costs its ends more than its kernel does, and a
 /// fit that left the bytes out cut partitions that pass too many rays.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

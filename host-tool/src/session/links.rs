@@ -102,9 +102,9 @@ mod tests {
         };
         let (n, h) = choice.specs().unwrap();
         // 50 MHz x 10 bits / 1 Mbaud = 500 cycles a byte, polled; the host
-        // keeps its rate and its interrupt.
+        // keeps its rate and its DMA.
         assert_eq!((n.model().byte, n.model().byte_cpu, n.transfer), (500, 16, Transfer::Polled));
-        assert_eq!((h.baud, h.clock_hz, h.transfer), (921_600, 50_000_000, Transfer::Interrupt));
+        assert_eq!((h.baud, h.clock_hz, h.transfer), (921_600, 50_000_000, Transfer::Dma));
     }
 
     #[test]
