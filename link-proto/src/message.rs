@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::board::{BoardInfo, PeerNote};
 use crate::health::LinkHealth;
-pub use crate::retirements::{Retire, Retirements};
+pub use crate::retirements::{Contribution, Retire, Retirements, Totals};
 
 /// A frame's sequence number on its link. It wraps at 2^8: a window holds
 /// far fewer frames than half of that, and a link never reorders frames, so

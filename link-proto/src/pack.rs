@@ -30,6 +30,21 @@ impl<'a> Writer<'a> {
     /// Into the room left by walking it, one check for all the bytes: a
     /// bounds-checked `put` a byte cost a record's four varints about 27
     /// instructions each on a Cortex-M3.
+    /// `v` as a varint of up to ten bytes (postcard's `u64`).
+    pub(crate) fn varint64(&mut self, mut v: u64) -> Option<()> {
+        let room = self.out.get_mut(self.at..)?;
+        for (n, slot) in room.iter_mut().enumerate() {
+            if v < 0x80 {
+                *slot = v as u8;
+                self.at += n + 1;
+                return Some(());
+            }
+            *slot = (v as u8) | 0x80;
+            v >>= 7;
+        }
+        None
+    }
+
     #[inline(never)]
     pub(crate) fn varint(&mut self, mut v: u32) -> Option<()> {
         let room = self.out.get_mut(self.at..)?;
@@ -80,6 +95,23 @@ impl Reader<'_> {
 
     /// A varint as [`Writer::varint`] writes it, and only so: a longer form
     /// of the same value (a last byte of zero) or one beyond `u32` is refused.
+    /// A canonical varint of up to ten bytes (postcard's `u64`).
+    pub(crate) fn varint64(&mut self) -> Option<u64> {
+        let mut v = 0u64;
+        for shift in (0..64).step_by(7) {
+            let b = self.u8()?;
+            let bits = u64::from(b & 0x7f);
+            if shift == 63 && bits > 1 {
+                return None;
+            }
+            v |= bits << shift;
+            if b & 0x80 == 0 {
+                return (b != 0 || shift == 0).then_some(v);
+            }
+        }
+        None
+    }
+
     pub(crate) fn varint(&mut self) -> Option<u32> {
         let mut v = 0u32;
         for shift in [0, 7, 14, 21, 28] {
@@ -115,6 +147,19 @@ mod tests {
             proptest::prop_assert_eq!(r.varint(), Some(v));
             proptest::prop_assert!(r.bytes.is_empty());
         }
+
+        #[test]
+        fn long_varints_round_trip_as_postcard_writes_them(v in proptest::num::u64::ANY) {
+            let mut buf = [0u8; 10];
+            let mut w = Writer::new(&mut buf);
+            w.varint64(v).unwrap();
+            let n = w.at;
+            let mut theirs = [0u8; 10];
+            proptest::prop_assert_eq!(&buf[..n], postcard::to_slice(&v, &mut theirs).unwrap());
+            let mut r = Reader { bytes: &buf[..n] };
+            proptest::prop_assert_eq!(r.varint64(), Some(v));
+            proptest::prop_assert!(r.bytes.is_empty());
+        }
     }
 
     #[test]
@@ -133,6 +178,12 @@ mod tests {
     fn longer_forms_and_overflows_are_refused() {
         assert_eq!(Reader { bytes: &[0x81, 0x00] }.varint(), None, "1 written in two bytes");
         assert_eq!(Reader { bytes: &[0x80, 0x80, 0x80, 0x80, 0x10] }.varint(), None, "2^32");
+        assert_eq!(Reader { bytes: &[0x81, 0x00] }.varint64(), None, "1 written in two bytes");
+        let two_to_64 = [0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x02];
+        assert_eq!(Reader { bytes: &two_to_64 }.varint64(), None, "2^64");
+        let mut max = [0xff; 10];
+        max[9] = 0x01;
+        assert_eq!(Reader { bytes: &max }.varint64(), Some(u64::MAX));
         assert_eq!(Reader { bytes: &[0xff, 0xff, 0xff, 0xff, 0x0f] }.varint(), Some(u32::MAX));
         assert_eq!(Reader { bytes: &[0x80] }.varint(), None, "cut short");
         assert_eq!(Reader { bytes: &[0x00] }.varint(), Some(0));

@@ -1,6 +1,8 @@
 //! The frame buffer: integer pixel sums, credit accounting, loads, errors.
 
-use link_proto::{ErrorReport, LoadReport, Message, PROTOCOL_VERSION, PortHealth, Retire, SlideNote};
+use link_proto::{
+    Contribution, ErrorReport, LoadReport, Message, PROTOCOL_VERSION, PortHealth, SlideNote, Totals,
+};
 
 use crate::error::HostError;
 use crate::session::clock::Clock;
@@ -60,7 +62,8 @@ pub struct FrameBuffer<T> {
     /// Rays retired.
     pub rays_terminated: u64,
     /// Retirement messages taken, and the records they carried (a pixel's
-    /// rays that ended one after another at a node share a record).
+    /// rays that ended one after another at a node share a record, and rays
+    /// that added nothing to their pixel take none).
     pub retirements: RetireCounts,
     /// Arrival time of the last retirement.
     pub makespan: T,
@@ -93,7 +96,7 @@ pub struct FrameBuffer<T> {
 pub struct RetireCounts {
     /// Retirement messages.
     pub messages: u64,
-    /// Records in them.
+    /// Records in them: contributions to pixels.
     pub records: u64,
 }
 
@@ -132,16 +135,21 @@ impl<T: Clock> FrameBuffer<T> {
         self.credit_back == self.credit_total
     }
 
-    fn retire(&mut self, at: T, r: Retire) {
-        if let Some(px) = self.sums.get_mut(r.pixel as usize) {
-            for ((s, c), b) in px.iter_mut().zip(r.rgb).zip(self.background) {
-                *s += u64::from(c) + u64::from(r.background) * u64::from(b);
+    /// Rays that ended at `at`: their credit and counts.
+    fn account(&mut self, at: T, t: Totals) {
+        self.credit_back += u128::from(t.credit);
+        self.rays_created += u64::from(t.spawned);
+        self.rays_terminated += u64::from(t.rays);
+        self.makespan = self.makespan.max(at);
+    }
+
+    /// What rays that ended add to their pixel.
+    fn contribute(&mut self, c: Contribution) {
+        if let Some(px) = self.sums.get_mut(c.pixel as usize) {
+            for ((s, v), b) in px.iter_mut().zip(c.rgb).zip(self.background) {
+                *s += u64::from(v) + u64::from(c.background) * u64::from(b);
             }
         }
-        self.credit_back += u128::from(r.credit);
-        self.rays_created += u64::from(r.spawned);
-        self.rays_terminated += u64::from(r.rays);
-        self.makespan = self.makespan.max(at);
     }
 
     /// The same frame with `side` x `side` samples a pixel.
@@ -171,8 +179,9 @@ impl<T: Clock> Endpoint<T> for FrameBuffer<T> {
             Message::Retire(batch) => {
                 self.retirements.messages += 1;
                 self.retirements.records += batch.len() as u64;
-                for r in batch.iter() {
-                    self.retire(at, r);
+                self.account(at, batch.totals());
+                for c in batch.iter() {
+                    self.contribute(c);
                 }
             }
             Message::Load(l) if l.interval == node_fw::node::FINAL_INTERVAL => {
