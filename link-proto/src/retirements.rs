@@ -133,12 +133,15 @@ pub struct Retirements {
     packed_len: u8,
     /// Contributions in all, the last included.
     len: u8,
+    /// The pixel of the last packed record (when there is one), which the
+    /// next record's pixel is written against.
+    packed_pixel: u32,
 }
 
 /// Room for the packed records: with the totals and the last one, a
 /// message stays within a ray's size (a test holds it), and it holds two
 /// records of the longest form, so that any three fit.
-const PACKED_MAX: usize = 78;
+const PACKED_MAX: usize = 74;
 const _: () = assert!(PACKED_MAX >= 2 * RECORD_MAX_LEN && PACKED_MAX < 256);
 
 impl Retirements {
@@ -147,7 +150,14 @@ impl Retirements {
         let totals =
             Totals { credit: first.credit, spawned: u16::from(first.spawned), rays: u16::from(first.rays) };
         let last = Contribution::of(&first);
-        Self { totals, last, packed: [0; PACKED_MAX], packed_len: 0, len: u8::from(last.is_some()) }
+        Self {
+            totals,
+            last,
+            packed: [0; PACKED_MAX],
+            packed_len: 0,
+            len: u8::from(last.is_some()),
+            packed_pixel: 0,
+        }
     }
 
     /// How many contributions there are.
@@ -167,7 +177,13 @@ impl Retirements {
 
     /// The contributions, in the order they were added.
     pub fn iter(&self) -> Contributions<'_> {
-        Contributions { packed: Reader { bytes: self.packed_bytes() }, last: self.last }
+        Contributions { packed: Reader { bytes: self.packed_bytes() }, last: self.last, before: None }
+    }
+
+    /// The pixel the last record's is written against: the last packed
+    /// record's, if any.
+    fn before_last(&self) -> Option<u32> {
+        (self.packed_len > 0).then_some(self.packed_pixel)
     }
 
     /// The packed records' bytes.
@@ -182,7 +198,8 @@ impl Retirements {
         let Some(last) = &self.last else { return false };
         let mut scratch = [0u8; RECORD_MAX_LEN];
         let mut w = Writer::new(&mut scratch);
-        encode_record(last, &mut w).is_none_or(|()| usize::from(self.packed_len) + w.at > PACKED_MAX)
+        encode_record(last, self.before_last(), &mut w)
+            .is_none_or(|()| usize::from(self.packed_len) + w.at > PACKED_MAX)
     }
 
     /// Adds `r`: its credit and counts to the totals, and what it adds to
@@ -213,16 +230,17 @@ impl Retirements {
             }
             Err(c) => c,
         };
-        let at = usize::from(self.packed_len);
+        let (at, before) = (usize::from(self.packed_len), self.before_last());
         let Some(room) = self.packed.get_mut(at..) else { return Err(c) };
         let mut w = Writer::new(room);
-        if encode_record(&last, &mut w).is_none() {
+        if encode_record(&last, before, &mut w).is_none() {
             // A partial record past `packed_len` is not one: nothing changed.
             return Err(c);
         }
         // At most PACKED_MAX (< 256) bytes, and a record per two of them.
         self.packed_len += w.at as u8;
         self.len += 1;
+        self.packed_pixel = last.pixel;
         self.last = Some(c);
         Ok(())
     }
@@ -233,6 +251,8 @@ impl Retirements {
 pub struct Contributions<'a> {
     packed: Reader<'a>,
     last: Option<Contribution>,
+    /// The pixel of the record before the next one.
+    before: Option<u32>,
 }
 
 impl Iterator for Contributions<'_> {
@@ -244,10 +264,13 @@ impl Iterator for Contributions<'_> {
         }
         // Packed by `add` or checked by the decoder: every record reads
         // back. Were one not to, the iterator would end, not panic.
-        let record = decode_record(&mut self.packed);
-        if record.is_none() {
-            self.packed.bytes = &[];
-            self.last = None;
+        let record = decode_record(&mut self.packed, self.before);
+        match record {
+            Some(c) => self.before = Some(c.pixel),
+            None => {
+                self.packed.bytes = &[];
+                self.last = None;
+            }
         }
         record
     }
@@ -274,8 +297,12 @@ impl Eq for Retirements {}
 // and counts took 8.7 bytes of the 10.5 a record cost (4x8x2, 256x256).
 //
 // Layout: the totals (credit, spawned and rays: three varints), then the
-// contributions, each: flags, pixel (varint), [rgb (3 varints)],
-// [background count]. Each message has exactly one encoding: bytes that
+// contributions, each: flags, pixel, [rgb (3 varints)], [background
+// count]. The first record's pixel is a varint; each later one's is its
+// difference from the record's before it, zigzagged (0, -1, 1, -2, ...)
+// into a varint: a node's rays come by tiles and rows, so neighbours in a
+// message are mostly near, two bytes where a 256x256 image's pixels take
+// three. Each message has exactly one encoding: bytes that
 // are not the encoder's choice are refused.
 //
 // A primary ray that met nothing (behind a sparse scene, most of what the
@@ -294,7 +321,8 @@ const BACKGROUND_ONE: u8 = 1 << BACKGROUND_SHIFT;
 const BACKGROUND_COUNT: u8 = 2 << BACKGROUND_SHIFT;
 const KNOWN_FLAGS: u8 = RGB_ZERO | BACKGROUND_MASK;
 
-/// The longest record: flags, four five-byte varints and the count.
+/// The longest record: flags, four five-byte varints (a difference of
+/// pixels takes 33 bits zigzagged) and the count.
 const RECORD_MAX_LEN: usize = 1 + 5 + 15 + 1;
 /// The longest totals: a ten-byte varint and two three-byte ones.
 const TOTALS_MAX_LEN: usize = 10 + 3 + 3;
@@ -313,11 +341,24 @@ fn flags_of(c: &Contribution) -> u8 {
     }
 }
 
-/// Packs `c` after what `w` holds.
-fn encode_record(c: &Contribution, w: &mut Writer<'_>) -> Option<()> {
+/// `d` zigzagged: 0, -1, 1, -2, ... as 0, 1, 2, 3, ...
+fn zigzag(d: i64) -> u64 {
+    ((d << 1) ^ (d >> 63)) as u64
+}
+
+/// The difference `zigzag` made `z` of.
+fn unzigzag(z: u64) -> i64 {
+    ((z >> 1) as i64) ^ -((z & 1) as i64)
+}
+
+/// Packs `c` after what `w` holds, its pixel against `before`'s.
+fn encode_record(c: &Contribution, before: Option<u32>, w: &mut Writer<'_>) -> Option<()> {
     let flags = flags_of(c);
     w.put(&[flags])?;
-    w.varint(c.pixel)?;
+    match before {
+        None => w.varint(c.pixel)?,
+        Some(b) => w.varint64(zigzag(i64::from(c.pixel) - i64::from(b)))?,
+    }
     if flags & RGB_ZERO == 0 {
         for v in c.rgb {
             w.varint(v)?;
@@ -329,13 +370,18 @@ fn encode_record(c: &Contribution, w: &mut Writer<'_>) -> Option<()> {
     Some(())
 }
 
-/// Unpacks the record at the front of `r`'s bytes.
-fn decode_record(r: &mut Reader<'_>) -> Option<Contribution> {
+/// Unpacks the record at the front of `r`'s bytes, its pixel written
+/// against `before`'s.
+fn decode_record(r: &mut Reader<'_>, before: Option<u32>) -> Option<Contribution> {
     let flags = r.u8()?;
     if flags & !KNOWN_FLAGS != 0 {
         return None;
     }
-    let pixel = r.varint()?;
+    let pixel = match before {
+        None => r.varint()?,
+        // A difference no two pixels have is no record's.
+        Some(b) => u32::try_from(i64::from(b).checked_add(unzigzag(r.varint64()?))?).ok()?,
+    };
     let rgb = if flags & RGB_ZERO != 0 { [0; 3] } else { [r.varint()?, r.varint()?, r.varint()?] };
     let background = match flags & BACKGROUND_MASK {
         BACKGROUND_NONE => 0,
@@ -371,7 +417,7 @@ impl Retirements {
         encode_totals(&self.totals, &mut w)?;
         w.put(self.packed_bytes())?;
         if let Some(last) = &self.last {
-            encode_record(last, &mut w)?;
+            encode_record(last, self.before_last(), &mut w)?;
         }
         Some(w.at)
     }
@@ -398,17 +444,21 @@ impl<'de> Deserialize<'de> for Retirements {
                 let mut r = Reader { bytes };
                 let totals = decode_totals(&mut r).ok_or_else(not_a_record)?;
                 let records = r.bytes;
-                let (mut last, mut last_at, mut len) = (None, 0usize, 0u8);
+                let (mut last, mut last_at, mut len) = (None::<Contribution>, 0usize, 0u8);
+                let mut packed_pixel = 0;
                 while !r.bytes.is_empty() {
                     last_at = records.len() - r.bytes.len();
-                    last = Some(decode_record(&mut r).ok_or_else(not_a_record)?);
+                    let before = last.map(|c| c.pixel);
+                    packed_pixel = before.unwrap_or(0);
+                    last = Some(decode_record(&mut r, before).ok_or_else(not_a_record)?);
                     len = len.checked_add(1).ok_or_else(|| E::custom("too many records"))?;
                 }
                 // The records before the last must fit where a node packs them.
                 let before = records.get(..last_at).filter(|b| b.len() <= PACKED_MAX);
                 let before = before.ok_or_else(|| E::custom("too many records"))?;
+                let packed_len = last_at as u8;
                 let mut all =
-                    Retirements { totals, last, packed: [0; PACKED_MAX], packed_len: last_at as u8, len };
+                    Retirements { totals, last, packed: [0; PACKED_MAX], packed_len, len, packed_pixel };
                 all.packed.get_mut(..last_at).ok_or_else(not_a_record)?.copy_from_slice(before);
                 Ok(all)
             }
@@ -465,7 +515,7 @@ mod tests {
         assert_eq!(listed(&all), [c(7, [15, 30, 6], 0), c(1, [1, 2, 3], 0), c(7, [1, 2, 3], 0)]);
         assert_eq!(totals_of(&all), summed(&[r(7, 10), r(7, 5), r(1, 1), r(7, 1)]));
         // A lit shadow ray's record in a 256x256 image: flags, three bytes
-        // of pixel, two of each colour.
+        // of pixel (one against a neighbour's), two of each colour.
         let lit = |pixel| Retire {
             pixel,
             rgb: [3000, 2000, 1000],
@@ -493,8 +543,9 @@ mod tests {
         expected.last_mut().unwrap().rgb = [6000, 4000, 2000];
         assert_eq!(listed(&all), expected);
         assert_eq!(totals_of(&all), summed(&pushed));
-        // Ten bytes each: eight, where three fitted unpacked.
-        assert_eq!(all.len(), 8);
+        // Ten bytes the first, eight each after it (a pixel one on from the
+        // one before: a byte): ten records, where three fitted unpacked.
+        assert_eq!(all.len(), 10);
     }
 
     #[test]
@@ -567,8 +618,10 @@ mod tests {
         let mut buf = [0u8; 255];
         let mut w = Writer::new(&mut buf[1..]);
         w.put(totals).unwrap();
+        let mut before = None;
         for r in records {
-            encode_record(r, &mut w).unwrap();
+            encode_record(r, before, &mut w).unwrap();
+            before = Some(r.pixel);
         }
         let n = w.at;
         buf[0] = n as u8;
@@ -584,20 +637,34 @@ mod tests {
         let mut buf = [0u8; Retirements::POSTCARD_MAX_SIZE];
         let bytes = postcard::to_slice(&all, &mut buf).unwrap();
         assert_eq!(postcard::from_bytes::<Retirements>(bytes), Ok(all));
-        // Records before the last beyond what a node packs: 78 bytes.
+        // Records before the last beyond what a node packs: 74 bytes.
         let wide = c(0, [1 << 30; 3], 0);
         let records: std::vec::Vec<_> = (0..7).map(|p| Contribution { pixel: 1 << 28 | p, ..wide }).collect();
         assert_eq!(wire(&[], &records[..1]).len() - 1, 21);
-        assert!(
-            postcard::from_bytes::<Retirements>(&wire(&[0, 0, 0], &records[..4])).is_ok(),
-            "63 before the last"
-        );
-        assert!(
-            postcard::from_bytes::<Retirements>(&wire(&[0, 0, 0], &records[..5])).is_err(),
-            "84 before the last"
-        );
+        assert_eq!(wire(&[], &records[..2]).len() - 1, 21 + 17, "a pixel one on: a byte");
+        let five = wire(&[0, 0, 0], &records[..5]);
+        assert!(postcard::from_bytes::<Retirements>(&five).is_ok(), "72 before the last");
+        let six = wire(&[0, 0, 0], &records[..6]);
+        assert!(postcard::from_bytes::<Retirements>(&six).is_err(), "89 before the last");
         assert!(postcard::from_bytes::<Retirements>(&[0]).is_err(), "no totals");
         assert!(postcard::from_bytes::<Retirements>(&[2, 0, 0]).is_err(), "totals cut short");
+    }
+
+    #[test]
+    fn a_pixel_is_written_against_the_one_before_both_ways_and_to_the_ends() {
+        let one = |pixel| c(pixel, [5, 6, 7], 0);
+        let pixels = [70_000, 70_001, 69_990, 0, u32::MAX, 1, u32::MAX - 1, 70_000, 70_000];
+        let records: std::vec::Vec<_> = pixels.iter().map(|&p| one(p)).collect();
+        let bytes = wire(&[0, 0, 1], &records);
+        // 70 000 takes three bytes alone; +1 and -11 one each.
+        assert_eq!(wire(&[], &records[..3]).len() - 1, (1 + 3 + 3) + (1 + 1 + 3) + (1 + 1 + 3));
+        let all: Retirements = postcard::from_bytes(&bytes).unwrap();
+        assert_eq!(listed(&all), records);
+        // A difference that leaves the pixels' range is no record's.
+        let mut below = wire(&[0, 0, 1], &records[..1]);
+        below.extend_from_slice(&[0, 0xff, 0xff, 0xff, 0xff, 0x0f, 5, 6, 7]);
+        below[0] += 9;
+        assert!(postcard::from_bytes::<Retirements>(&below).is_err());
     }
 
     #[test]
