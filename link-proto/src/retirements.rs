@@ -296,7 +296,8 @@ impl Eq for Retirements {}
 // varint) and counts of one ray; a record of its own for each ray's credit
 // and counts took 8.7 bytes of the 10.5 a record cost (4x8x2, 256x256).
 //
-// Layout: the totals (credit, spawned and rays: three varints), then the
+// Layout: the totals (credit as an exponent byte and an odd varint,
+// spawned and rays as varints), then the
 // contributions, each: flags, pixel, [rgb (3 varints)], [background
 // count]. The first record's pixel is a varint; each later one's is its
 // difference from the record's before it, zigzagged (0, -1, 1, -2, ...)
@@ -324,8 +325,9 @@ const KNOWN_FLAGS: u8 = RGB_ZERO | BACKGROUND_MASK;
 /// The longest record: flags, four five-byte varints (a difference of
 /// pixels takes 33 bits zigzagged) and the count.
 const RECORD_MAX_LEN: usize = 1 + 5 + 15 + 1;
-/// The longest totals: a ten-byte varint and two three-byte ones.
-const TOTALS_MAX_LEN: usize = 10 + 3 + 3;
+/// The longest totals: the credit's exponent and ten-byte varint, and two
+/// three-byte varints.
+const TOTALS_MAX_LEN: usize = 1 + 10 + 3 + 3;
 /// The longest wire form of a message's retirements.
 pub(crate) const WIRE_MAX_LEN: usize = TOTALS_MAX_LEN + PACKED_MAX + RECORD_MAX_LEN;
 const _: () = assert!(WIRE_MAX_LEN < 128, "the byte string's length must stay one varint byte");
@@ -396,13 +398,23 @@ fn decode_record(r: &mut Reader<'_>, before: Option<u32>) -> Option<Contribution
 }
 
 fn encode_totals(t: &Totals, w: &mut Writer<'_>) -> Option<()> {
-    w.varint64(t.credit)?;
+    // Credit as an odd multiple of a power of two (0 as 0 of 2^0): a pixel's
+    // is 2^32 and a hit splits a ray's by powers of two, so a message's sum
+    // is a small odd number of a large power: two bytes where a varint of
+    // the sum took five.
+    let exponent = if t.credit == 0 { 0 } else { t.credit.trailing_zeros() };
+    w.put(&[exponent as u8])?;
+    w.varint64(t.credit >> exponent)?;
     w.varint(u32::from(t.spawned))?;
     w.varint(u32::from(t.rays))
 }
 
 fn decode_totals(r: &mut Reader<'_>) -> Option<Totals> {
-    let credit = r.varint64()?;
+    let exponent = u32::from(r.u8()?);
+    let odd = r.varint64()?;
+    // One encoding: an odd multiple, or 0 of 2^0; and no bit shifted out.
+    let canonical = if odd == 0 { exponent == 0 } else { odd % 2 == 1 && exponent < 64 };
+    let credit = odd.checked_shl(exponent).filter(|c| canonical && c >> exponent == odd)?;
     let spawned = u16::try_from(r.varint()?).ok()?;
     let rays = u16::try_from(r.varint()?).ok()?;
     Some(Totals { credit, spawned, rays })
@@ -563,7 +575,7 @@ mod tests {
         let mut buf = [0u8; Retirements::POSTCARD_MAX_SIZE];
         let only = Retirements::new(blocked);
         let bytes = postcard::to_slice(&only, &mut buf).unwrap();
-        assert_eq!(bytes, [3, 0, 1, 1], "length, credit 0, one spawned, one ray");
+        assert_eq!(bytes, [4, 0, 0, 1, 1], "length, credit 0 (of 2^0), one spawned, one ray");
         assert_eq!(postcard::from_bytes::<Retirements>(bytes), Ok(only));
     }
 
@@ -642,9 +654,9 @@ mod tests {
         let records: std::vec::Vec<_> = (0..7).map(|p| Contribution { pixel: 1 << 28 | p, ..wide }).collect();
         assert_eq!(wire(&[], &records[..1]).len() - 1, 21);
         assert_eq!(wire(&[], &records[..2]).len() - 1, 21 + 17, "a pixel one on: a byte");
-        let five = wire(&[0, 0, 0], &records[..5]);
+        let five = wire(&[0, 0, 0, 0], &records[..5]);
         assert!(postcard::from_bytes::<Retirements>(&five).is_ok(), "72 before the last");
-        let six = wire(&[0, 0, 0], &records[..6]);
+        let six = wire(&[0, 0, 0, 0], &records[..6]);
         assert!(postcard::from_bytes::<Retirements>(&six).is_err(), "89 before the last");
         assert!(postcard::from_bytes::<Retirements>(&[0]).is_err(), "no totals");
         assert!(postcard::from_bytes::<Retirements>(&[2, 0, 0]).is_err(), "totals cut short");
@@ -655,13 +667,13 @@ mod tests {
         let one = |pixel| c(pixel, [5, 6, 7], 0);
         let pixels = [70_000, 70_001, 69_990, 0, u32::MAX, 1, u32::MAX - 1, 70_000, 70_000];
         let records: std::vec::Vec<_> = pixels.iter().map(|&p| one(p)).collect();
-        let bytes = wire(&[0, 0, 1], &records);
+        let bytes = wire(&[0, 0, 0, 1], &records);
         // 70 000 takes three bytes alone; +1 and -11 one each.
         assert_eq!(wire(&[], &records[..3]).len() - 1, (1 + 3 + 3) + (1 + 1 + 3) + (1 + 1 + 3));
         let all: Retirements = postcard::from_bytes(&bytes).unwrap();
         assert_eq!(listed(&all), records);
         // A difference that leaves the pixels' range is no record's.
-        let mut below = wire(&[0, 0, 1], &records[..1]);
+        let mut below = wire(&[0, 0, 0, 1], &records[..1]);
         below.extend_from_slice(&[0, 0xff, 0xff, 0xff, 0xff, 0x0f, 5, 6, 7]);
         below[0] += 9;
         assert!(postcard::from_bytes::<Retirements>(&below).is_err());
@@ -673,9 +685,12 @@ mod tests {
             Retire { pixel: 300, rgb: [0; 3], credit: PIXEL_CREDIT, spawned: 0, rays: 1, background: 1 };
         let all = Retirements::new(miss);
         let mut buf = [0u8; Retirements::POSTCARD_MAX_SIZE];
-        // The string's length; the totals: the pixel's credit (2^32, five
-        // bytes), none spawned, one ray; then flags and a two-byte pixel.
-        assert_eq!(postcard::to_slice(&all, &mut buf).unwrap().len(), 1 + 5 + 1 + 1 + 1 + 2);
+        // The string's length; the totals: the pixel's credit (1 of 2^32,
+        // two bytes), none spawned, one ray; then flags and a two-byte pixel.
+        assert_eq!(
+            postcard::to_slice(&all, &mut buf).unwrap(),
+            [7, 32, 1, 0, 1, BACKGROUND_ONE | RGB_ZERO, 172, 2]
+        );
         // Under the full strength, its colour: two, two and three bytes.
         let dim = c(300, [1000, 2000, 30000], 0);
         assert_eq!(wire(&[], &[dim]).len(), 1 + 1 + 2 + 2 + 2 + 3);
@@ -690,34 +705,40 @@ mod tests {
     fn a_second_encoding_of_the_same_message_is_refused() {
         let ok = |bytes: &[u8]| postcard::from_bytes::<Retirements>(bytes).is_ok();
         let one = c(5, [0; 3], 1);
-        assert!(ok(&wire(&[0, 0, 1], &[one])));
+        assert!(ok(&wire(&[0, 0, 0, 1], &[one])));
         // A varint of the totals written longer than it needs.
-        assert!(!ok(&wire(&[0x80, 0x00, 0, 1], &[one])));
+        assert!(!ok(&wire(&[0, 0x80, 0x00, 0, 1], &[one])));
+        // Credit 12 only as 3 of 2^2: not 6 of 2^1, nor 0 of 2^5, nor past 64 bits.
+        assert!(ok(&wire(&[2, 3, 0, 1], &[one])));
+        assert!(!ok(&wire(&[1, 6, 0, 1], &[one])));
+        assert!(!ok(&wire(&[5, 0, 0, 1], &[one])));
+        assert!(!ok(&wire(&[63, 3, 0, 1], &[one])));
+        assert!(!ok(&wire(&[64, 1, 0, 1], &[one])));
         // Colour written out though it is none.
-        let mut zero_rgb = wire(&[0, 0, 1], &[one]);
-        zero_rgb[4] &= !RGB_ZERO;
+        let mut zero_rgb = wire(&[0, 0, 0, 1], &[one]);
+        zero_rgb[5] &= !RGB_ZERO;
         zero_rgb.extend_from_slice(&[0, 0, 0]);
         zero_rgb[0] += 3;
         assert!(!ok(&zero_rgb));
         // A flag no encoder sets.
-        let mut odd = wire(&[0, 0, 1], &[one]);
-        odd[4] |= 1 << 7;
+        let mut odd = wire(&[0, 0, 0, 1], &[one]);
+        odd[5] |= 1 << 7;
         assert!(!ok(&odd));
         // One background ray written as a count, or the count's form unused.
-        let mut counted = wire(&[0, 0, 1], &[one]);
-        counted[4] = (counted[4] & !BACKGROUND_MASK) | BACKGROUND_COUNT;
+        let mut counted = wire(&[0, 0, 0, 1], &[one]);
+        counted[5] = (counted[5] & !BACKGROUND_MASK) | BACKGROUND_COUNT;
         counted.push(1);
         counted[0] += 1;
         assert!(!ok(&counted));
-        let mut form3 = wire(&[0, 0, 1], &[one]);
-        form3[4] |= BACKGROUND_MASK;
+        let mut form3 = wire(&[0, 0, 0, 1], &[one]);
+        form3[5] |= BACKGROUND_MASK;
         assert!(!ok(&form3));
         // A record that adds nothing, which no encoder writes.
-        let mut nothing = wire(&[0, 0, 1], &[one]);
-        nothing[4] &= !BACKGROUND_MASK;
+        let mut nothing = wire(&[0, 0, 0, 1], &[one]);
+        nothing[5] &= !BACKGROUND_MASK;
         assert!(!ok(&nothing));
         // Counts past their 16 bits.
-        assert!(!ok(&wire(&[0, 0x80, 0x80, 0x04, 1], &[one])));
+        assert!(!ok(&wire(&[0, 0, 0x80, 0x80, 0x04, 1], &[one])));
     }
 
     proptest::proptest! {

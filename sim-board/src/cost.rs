@@ -73,7 +73,7 @@ impl Default for CostModel {
     /// 732.7. The rays are half primaries from the eye,
     /// half reflections from inside the grid with half their pixel's credit
     /// (38.0 bytes a frame). A node's end of a retirement (the host's acks
-    /// taken) 1 119.0 with one record, 2 767.6 with six: 330 a further record.
+    /// taken) 1 082.7 with one record, 2 738.7 with six: 331 a further record.
     fn default() -> Self {
         Self {
             cube_step: 109,
@@ -88,8 +88,8 @@ impl Default for CostModel {
             granted_ray: 877,
             batched_ray: 733,
             short_message: 474,
-            retire_message: 1_119,
-            retire_record: 330,
+            retire_message: 1_083,
+            retire_record: 331,
             pass: 0,
         }
     }
