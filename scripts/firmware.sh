@@ -74,11 +74,15 @@ grep -q _SEGGER_RTT "$OUT/node-stm32f413.elf" && "$SIZE" -A "$OUT/node-stm32f413
 # call or (the UART's) a barrier, must be counted afresh and the charge
 # changed. (awk reads all of objdump's output: see nm's above.)
 OBJDUMP="$(dirname "$SIZE")/llvm-objdump"
+# Each image disassembled once.
+declare -A DISASSEMBLY
+for image in stm32f413 netduinoplus2; do
+    DISASSEMBLY[$image]=$("$OBJDUMP" -d --no-show-raw-insn "$OUT/node-$image.elf")
+done
 # check_handler IMAGE NAME MAX_INSTRUCTIONS MAX_DMB WHAT
 check_handler() {
     local image=$1 name=$2 most=$3 barriers=$4 charge=$5 body len calls
-    body=$("$OBJDUMP" -d --no-show-raw-insn "$OUT/node-$image.elf" |
-        awk "/<$name>:/ { on = 1; next } /^\$/ { on = 0 } on")
+    body=$(echo "${DISASSEMBLY[$image]}" | awk "/<$name>:/ { on = 1; next } /^\$/ { on = 0 } on")
     len=$(echo "$body" | grep -c .)
     # A branch or call to any other symbol means part of the path lies
     # outside the handler, where this count does not see it.

@@ -552,7 +552,8 @@ mod tests {
         pushed.push(blocked);
         let mut expected: std::vec::Vec<Contribution> =
             (20_000..pixel).map(|p| c(p, [3000, 2000, 1000], 0)).collect();
-        expected.last_mut().unwrap().rgb = [6000, 4000, 2000];
+        let Some(last) = expected.last_mut() else { panic!("records were pushed") };
+        last.rgb = [6000, 4000, 2000];
         assert_eq!(listed(&all), expected);
         assert_eq!(totals_of(&all), summed(&pushed));
         // Ten bytes the first, eight each after it (a pixel one on from the
@@ -572,11 +573,10 @@ mod tests {
         let rays = [blocked, Retire { pixel: 12, ..blocked }, r(3, 2)];
         assert_eq!(totals_of(&all), summed(&rays));
         // On the wire: the totals alone, then one record.
-        let mut buf = [0u8; Retirements::POSTCARD_MAX_SIZE];
         let only = Retirements::new(blocked);
-        let bytes = postcard::to_slice(&only, &mut buf).unwrap();
+        let bytes = to_wire(&only);
         assert_eq!(bytes, [4, 0, 0, 1, 1], "length, credit 0 (of 2^0), one spawned, one ray");
-        assert_eq!(postcard::from_bytes::<Retirements>(bytes), Ok(only));
+        assert_eq!(from_wire(&bytes), Some(only));
     }
 
     #[test]
@@ -596,9 +596,7 @@ mod tests {
         let want: std::vec::Vec<_> = (0..3).map(|p| c(u32::MAX - p, [u32::MAX; 3], 9)).collect();
         assert_eq!(listed(&all), want);
         assert!(core::mem::size_of::<Retirements>() <= core::mem::size_of::<crate::RayMsg>());
-        let mut buf = [0u8; Retirements::POSTCARD_MAX_SIZE];
-        let bytes = postcard::to_slice(&all, &mut buf).unwrap();
-        assert_eq!(postcard::from_bytes::<Retirements>(bytes), Ok(all));
+        assert_eq!(from_wire(&to_wire(&all)), Some(all));
     }
 
     #[test]
@@ -625,16 +623,33 @@ mod tests {
         }
     }
 
-    /// A wire form: the totals' bytes, then the records'.
+    /// `all`'s postcard form.
+    fn to_wire(all: &Retirements) -> std::vec::Vec<u8> {
+        let mut buf = [0u8; Retirements::POSTCARD_MAX_SIZE];
+        match postcard::to_slice(all, &mut buf) {
+            Ok(bytes) => bytes.to_vec(),
+            Err(e) => panic!("{all:?} does not encode: {e}"),
+        }
+    }
+
+    /// The retirements `bytes` are the postcard form of, if any.
+    fn from_wire(bytes: &[u8]) -> Option<Retirements> {
+        postcard::from_bytes(bytes).ok()
+    }
+
+    /// A wire form: the totals' bytes, then the records', each pixel
+    /// against the one before as the encoder writes it.
     fn wire(totals: &[u8], records: &[Contribution]) -> std::vec::Vec<u8> {
         let mut buf = [0u8; 255];
         let mut w = Writer::new(&mut buf[1..]);
-        w.put(totals).unwrap();
         let mut before = None;
-        for r in records {
-            encode_record(r, before, &mut w).unwrap();
-            before = Some(r.pixel);
-        }
+        let fits = w.put(totals).is_some()
+            && records.iter().all(|r| {
+                let written = encode_record(r, before, &mut w).is_some();
+                before = Some(r.pixel);
+                written
+            });
+        assert!(fits, "a test's records fit 254 bytes");
         let n = w.at;
         buf[0] = n as u8;
         buf[..=n].to_vec()
@@ -644,22 +659,18 @@ mod tests {
     fn records_round_trip_and_more_than_a_node_packs_are_refused() {
         let mut all = Retirements::new(r(1, 1));
         for p in 2..=10 {
-            all.push(r(p, p)).unwrap();
+            assert_eq!(all.push(r(p, p)), Ok(()));
         }
-        let mut buf = [0u8; Retirements::POSTCARD_MAX_SIZE];
-        let bytes = postcard::to_slice(&all, &mut buf).unwrap();
-        assert_eq!(postcard::from_bytes::<Retirements>(bytes), Ok(all));
+        assert_eq!(from_wire(&to_wire(&all)), Some(all));
         // Records before the last beyond what a node packs: 74 bytes.
         let wide = c(0, [1 << 30; 3], 0);
         let records: std::vec::Vec<_> = (0..7).map(|p| Contribution { pixel: 1 << 28 | p, ..wide }).collect();
         assert_eq!(wire(&[], &records[..1]).len() - 1, 21);
         assert_eq!(wire(&[], &records[..2]).len() - 1, 21 + 17, "a pixel one on: a byte");
-        let five = wire(&[0, 0, 0, 0], &records[..5]);
-        assert!(postcard::from_bytes::<Retirements>(&five).is_ok(), "72 before the last");
-        let six = wire(&[0, 0, 0, 0], &records[..6]);
-        assert!(postcard::from_bytes::<Retirements>(&six).is_err(), "89 before the last");
-        assert!(postcard::from_bytes::<Retirements>(&[0]).is_err(), "no totals");
-        assert!(postcard::from_bytes::<Retirements>(&[2, 0, 0]).is_err(), "totals cut short");
+        assert!(from_wire(&wire(&[0, 0, 0, 0], &records[..5])).is_some(), "72 before the last");
+        assert!(from_wire(&wire(&[0, 0, 0, 0], &records[..6])).is_none(), "89 before the last");
+        assert!(from_wire(&[0]).is_none(), "no totals");
+        assert!(from_wire(&[2, 0, 0]).is_none(), "totals cut short");
     }
 
     #[test]
@@ -670,32 +681,26 @@ mod tests {
         let bytes = wire(&[0, 0, 0, 1], &records);
         // 70 000 takes three bytes alone; +1 and -11 one each.
         assert_eq!(wire(&[], &records[..3]).len() - 1, (1 + 3 + 3) + (1 + 1 + 3) + (1 + 1 + 3));
-        let all: Retirements = postcard::from_bytes(&bytes).unwrap();
-        assert_eq!(listed(&all), records);
+        assert_eq!(from_wire(&bytes).map(|all| listed(&all)), Some(records.clone()));
         // A difference that leaves the pixels' range is no record's.
         let mut below = wire(&[0, 0, 0, 1], &records[..1]);
         below.extend_from_slice(&[0, 0xff, 0xff, 0xff, 0xff, 0x0f, 5, 6, 7]);
         below[0] += 9;
-        assert!(postcard::from_bytes::<Retirements>(&below).is_err());
+        assert!(from_wire(&below).is_none());
     }
 
     #[test]
     fn a_primary_ray_that_missed_takes_its_flags_and_pixel() {
         let miss =
             Retire { pixel: 300, rgb: [0; 3], credit: PIXEL_CREDIT, spawned: 0, rays: 1, background: 1 };
-        let all = Retirements::new(miss);
-        let mut buf = [0u8; Retirements::POSTCARD_MAX_SIZE];
         // The string's length; the totals: the pixel's credit (1 of 2^32,
         // two bytes), none spawned, one ray; then flags and a two-byte pixel.
-        assert_eq!(
-            postcard::to_slice(&all, &mut buf).unwrap(),
-            [7, 32, 1, 0, 1, BACKGROUND_ONE | RGB_ZERO, 172, 2]
-        );
+        assert_eq!(to_wire(&Retirements::new(miss)), [7, 32, 1, 0, 1, BACKGROUND_ONE | RGB_ZERO, 172, 2]);
         // Under the full strength, its colour: two, two and three bytes.
         let dim = c(300, [1000, 2000, 30000], 0);
         assert_eq!(wire(&[], &[dim]).len(), 1 + 1 + 2 + 2 + 2 + 3);
         // Merged with another such ray of its pixel: the background count.
-        let mut two = Contribution::of(&miss).unwrap();
+        let Some(mut two) = Contribution::of(&miss) else { panic!("a miss adds the background") };
         assert_eq!(two.merge(two), Ok(()));
         assert_eq!(two.background, 2);
         assert_eq!(wire(&[], &[two]).len(), 1 + 1 + 2 + 1);
@@ -703,7 +708,7 @@ mod tests {
 
     #[test]
     fn a_second_encoding_of_the_same_message_is_refused() {
-        let ok = |bytes: &[u8]| postcard::from_bytes::<Retirements>(bytes).is_ok();
+        let ok = |bytes: &[u8]| from_wire(bytes).is_some();
         let one = c(5, [0; 3], 1);
         assert!(ok(&wire(&[0, 0, 0, 1], &[one])));
         // A varint of the totals written longer than it needs.
@@ -794,9 +799,7 @@ mod tests {
             let want: std::vec::Vec<_> = records[..taken].iter().filter_map(Contribution::of).collect();
             proptest::prop_assert_eq!(listed(&all), want);
             proptest::prop_assert_eq!(totals_of(&all), summed(&records[..taken]));
-            let mut buf = [0u8; Retirements::POSTCARD_MAX_SIZE];
-            let bytes = postcard::to_slice(&all, &mut buf).unwrap();
-            proptest::prop_assert_eq!(postcard::from_bytes::<Retirements>(bytes), Ok(all));
+            proptest::prop_assert_eq!(from_wire(&to_wire(&all)), Some(all));
         }
     }
 }
