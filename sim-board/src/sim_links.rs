@@ -213,9 +213,34 @@ pub fn frame_len(msg: &Message) -> usize {
     encode_frame(&frame, &mut buf).unwrap_or(MAX_FRAME_LEN)
 }
 
+/// Bytes a message takes on a busy link, where it travels in a batch of as
+/// many like it as a frame holds (the rule by which a waiting batch takes
+/// another message): its share of the batch's frame.
+pub fn batched_len(msg: &Message) -> f64 {
+    let alone = frame_len(msg) as u64;
+    let (first, more) = (alone + BATCH_HEAD, alone.saturating_sub(FRAME_ALONE).max(1));
+    let count = 1 + (MAX_FRAME_LEN as u64).saturating_sub(first) / more;
+    (first + (count - 1) * more) as f64 / count as f64
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_message_on_a_busy_link_pays_its_share_of_a_full_batch() {
+        for msg in [Message::Grant(8), Message::Ack(3), Message::Sync(u32::MAX)] {
+            let alone = frame_len(&msg) as u64;
+            // Filled by joining, as a port fills a batch that waits.
+            let waiting = Some(Waiting { start: 100, len: alone, count: 1, this_poll: false });
+            let mut port = PortState { waiting, ..Default::default() };
+            while port.join(alone, 0).is_some() {}
+            let w = port.waiting.unwrap();
+            let share = w.len as f64 / w.count as f64;
+            assert_eq!(batched_len(&msg), share, "{msg:?}");
+            assert!(share < alone as f64);
+        }
+    }
 
     #[test]
     fn a_message_joins_only_a_batch_still_waiting_for_the_wire() {

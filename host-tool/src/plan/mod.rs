@@ -123,8 +123,10 @@ pub fn initial_partition(
             // work of the cube. Other modes spread creation by tiles.
             let creation = opts.initial == Initial::Entry;
             let bytes = direct::ByteCpu::of(&opts.sim.link, &opts.sim.host_link);
-            let costs = direct::cost_map(scene, [w, h], &opts.sim.cost, bytes, creation, opts.clear_walks)
-                .map_err(|e| e.context("the preview for --layout preview"))?;
+            let mut costs =
+                direct::cost_map(scene, [w, h], &opts.sim.cost, bytes, creation, opts.clear_walks)
+                    .map_err(|e| e.context("the preview for --layout preview"))?;
+            costs.wire.cycles = cost_map::WireCycles::of(&opts.sim.link, &opts.sim.host_link);
             // Staggered no further than the nodes' pools can route at this depth.
             let most = [Boundaries::StaggeredColumns, Boundaries::StaggeredRows]
                 .into_iter()

@@ -4,9 +4,12 @@
 use node_fw::CubeBox;
 
 use super::rows::{RowCache, RowProfile};
-use super::sums::{BoxSums, LayerSums, MapSums};
+use super::sums::{BoxSums, LayerSums, MapSums, WireSums};
 use crate::plan::cost_map::CostMap;
 use crate::plan::partition::Partition;
+
+/// A fit's score, lowest best ([`Pricing::score`]).
+pub(super) type Score = (u64, u64, u128);
 
 /// A box of cubes, `lo <= c < hi` on every axis.
 type Cubes = ([usize; 3], [usize; 3]);
@@ -54,9 +57,21 @@ impl<'a> Pricing<'a> {
         self.map.grid
     }
 
-    /// Every node's cost under the map ([`Partition::node_costs`]).
-    pub(super) fn node_costs(&self, p: &Partition) -> Vec<u64> {
-        p.node_costs_summed(self.map.grid, &self.sums)
+    /// How well `p` fits: the longest node time (the longer of its CPU's
+    /// and its busiest wire's, [`Partition::node_times`]), then the
+    /// busiest CPU, then the sum of the squared times. Where the wires
+    /// bound the frame, many cuts share its longest wire; among them the
+    /// CPU is still balanced, since a wire's time is an estimate.
+    pub(super) fn score(&self, p: &Partition) -> Score {
+        let cpu = p.node_costs_summed(self.map.grid, &self.sums);
+        let times = match &self.sums.wire {
+            Some(wire) => {
+                p.wire_times(self.map.grid, wire).iter().zip(&cpu).map(|(&w, &c)| w.max(c)).collect()
+            }
+            None => cpu.clone(),
+        };
+        let most = |v: &[u64]| v.iter().copied().max().unwrap_or(0);
+        (most(&times), most(&cpu), times.iter().map(|&c| u128::from(c) * u128::from(c)).sum())
     }
 
     /// `p`'s rows, each profiled and cut on its own ([`RowCache::rows`]).
@@ -75,6 +90,20 @@ impl Partition {
         self.node_costs_summed(map.grid, &MapSums::new(map))
     }
 
+    /// Every node's time under `map`: the longer of its CPU's
+    /// ([`Self::node_costs`]) and its busiest wire's (its host link's bytes,
+    /// or those one of its neighbour links carries either way, each way a
+    /// wire of its own), at what a byte takes there. The CPU alone where the
+    /// map prices no wire.
+    pub fn node_times(&self, map: &CostMap) -> Vec<u64> {
+        let sums = MapSums::new(map);
+        let cpu = self.node_costs_summed(map.grid, &sums);
+        match &sums.wire {
+            Some(wire) => self.wire_times(map.grid, wire).iter().zip(&cpu).map(|(&w, &c)| w.max(c)).collect(),
+            None => cpu,
+        }
+    }
+
     /// [`Self::node_costs`] with `map`'s sums made once for many partitions.
     ///
     /// Every crossing lies on one face of the box it leaves: a node pays its
@@ -83,26 +112,22 @@ impl Partition {
     fn node_costs_summed(&self, grid: [u16; 3], sums: &MapSums) -> Vec<u64> {
         let routes = Routes::new(self);
         let mut cost: Vec<u64> = routes.boxes.iter().map(|&(lo, hi)| sums.cells.sum(lo, hi)).collect();
-        let grid = grid.map(usize::from);
-        for (id, &(lo, hi)) in routes.boxes.iter().enumerate() {
-            for axis in 0..3 {
-                if hi[axis] < grid[axis] {
-                    let mut beyond = (lo, hi);
-                    (beyond.0[axis], beyond.1[axis]) = (hi[axis], hi[axis] + 1);
-                    let up = Crossing { charges: &sums.up[axis], axis, upward: true };
-                    routes.send(&mut cost, id, beyond, &up);
-                }
-                if lo[axis] > 0 {
-                    let mut beyond = (lo, hi);
-                    (beyond.0[axis], beyond.1[axis]) = (lo[axis] - 1, lo[axis]);
-                    let down = Crossing { charges: &sums.down[axis], axis, upward: false };
-                    routes.send(&mut cost, id, beyond, &down);
-                }
-            }
-        }
+        routes.every_face(grid, [&sums.up, &sums.down], &mut |at, next, _, price| {
+            cost[at] += price;
+            cost[next] += price;
+        });
         cost
     }
+
+    /// Each node's busiest wire's time ([`Self::node_times`]).
+    fn wire_times(&self, grid: [u16; 3], wire: &WireSums) -> Vec<u64> {
+        Routes::new(self).wire_times(grid, wire)
+    }
 }
+
+/// Where one hop of rays goes: the node it leaves, the node it reaches,
+/// the axis it crosses, and what the rays charge there.
+type Sink<'s> = dyn FnMut(usize, usize, usize, u64) + 's;
 
 /// How the nodes of a partition route a ray ([`node_fw::route::toward`]):
 /// their boxes, and the order and strides of the axes.
@@ -122,13 +147,58 @@ impl Routes {
         Self { boxes, order: [(d + 1) % 3, (d + 2) % 3, d], stride: [1, x, x * y] }
     }
 
+    /// Sends the rays leaving every face of every box inside the grid on
+    /// their way, `charges` those crossing upward and downward per axis.
+    fn every_face(&self, grid: [u16; 3], [up, down]: [&[BoxSums; 3]; 2], sink: &mut Sink<'_>) {
+        let grid = grid.map(usize::from);
+        for (id, &(lo, hi)) in self.boxes.iter().enumerate() {
+            for axis in 0..3 {
+                if hi[axis] < grid[axis] {
+                    let mut beyond = (lo, hi);
+                    (beyond.0[axis], beyond.1[axis]) = (hi[axis], hi[axis] + 1);
+                    let up = Crossing { charges: &up[axis], axis, upward: true };
+                    self.send(sink, id, beyond, &up);
+                }
+                if lo[axis] > 0 {
+                    let mut beyond = (lo, hi);
+                    (beyond.0[axis], beyond.1[axis]) = (lo[axis] - 1, lo[axis]);
+                    let down = Crossing { charges: &down[axis], axis, upward: false };
+                    self.send(sink, id, beyond, &down);
+                }
+            }
+        }
+    }
+
+    /// Each node's longest wire time: its host link's bytes, or the bytes
+    /// one of its neighbour links carries either way (each way is a wire of
+    /// its own), at what a byte takes there.
+    fn wire_times(&self, grid: [u16; 3], wire: &WireSums) -> Vec<u64> {
+        // Per node and port (axis, upward): bytes sent and bytes received.
+        let mut sent = vec![[0u64; 6]; self.boxes.len()];
+        let mut received = sent.clone();
+        self.every_face(grid, [&wire.up, &wire.down], &mut |at, next, axis, bytes| {
+            let up = usize::from(next > at);
+            sent[at][2 * axis + up] += bytes;
+            received[next][2 * axis + 1 - up] += bytes;
+        });
+        let cycles = wire.cycles;
+        self.boxes
+            .iter()
+            .zip(sent.iter().zip(&received))
+            .map(|(&(lo, hi), (sent, received))| {
+                let busiest = sent.iter().chain(received).copied().max().unwrap_or(0);
+                (busiest * cycles.neighbour).max(wire.host.sum(lo, hi) * cycles.host)
+            })
+            .collect()
+    }
+
     /// Charges both ends of every hop of the rays at node `at` bound for
     /// `cubes`, as the nodes route each ray: the first axis in routing
     /// order on which a cube lies outside the node's box decides its port.
     /// So the cubes are split by the box's bounds on that axis: those below
     /// and above hop to the neighbour that way, and those within go on to
     /// the next axis from the same node.
-    fn send(&self, cost: &mut [u64], at: usize, cubes: Cubes, rays: &Crossing<'_>) {
+    fn send(&self, sink: &mut Sink<'_>, at: usize, cubes: Cubes, rays: &Crossing<'_>) {
         let (blo, bhi) = self.boxes[at];
         let outside = |a: usize| cubes.0[a] < blo[a] || cubes.1[a] > bhi[a];
         let Some(axis) = self.order.into_iter().find(|&a| outside(a)) else {
@@ -141,27 +211,31 @@ impl Routes {
             p
         };
         if lo < blo[axis] {
-            self.hop(cost, at, at - self.stride[axis], part(lo, hi.min(blo[axis])), rays);
+            self.hop(sink, (at, at - self.stride[axis], axis), part(lo, hi.min(blo[axis])), rays);
         }
         if hi > bhi[axis] {
-            self.hop(cost, at, at + self.stride[axis], part(lo.max(bhi[axis]), hi), rays);
+            self.hop(sink, (at, at + self.stride[axis], axis), part(lo.max(bhi[axis]), hi), rays);
         }
         let within = part(lo.max(blo[axis]), hi.min(bhi[axis]));
         if within.0[axis] < within.1[axis] {
-            self.send(cost, at, within, rays);
+            self.send(sink, at, within, rays);
         }
     }
 
     /// One hop of the rays bound for `cubes`, from `at` to its neighbour
-    /// `next`, charged at both ends; and on from there unless they are home
+    /// `next` along `axis`, charged; and on from there unless they are home
     /// (most are: checked here, it spares a call).
-    fn hop(&self, cost: &mut [u64], at: usize, next: usize, cubes: Cubes, rays: &Crossing<'_>) {
-        let price = rays.price(cubes);
-        cost[at] += price;
-        cost[next] += price;
+    fn hop(
+        &self,
+        sink: &mut Sink<'_>,
+        (at, next, axis): (usize, usize, usize),
+        cubes: Cubes,
+        rays: &Crossing<'_>,
+    ) {
+        sink(at, next, axis, rays.price(cubes));
         let (nlo, nhi) = self.boxes[next];
         if (0..3).any(|a| cubes.0[a] < nlo[a] || cubes.1[a] > nhi[a]) {
-            self.send(cost, next, cubes, rays);
+            self.send(sink, next, cubes, rays);
         }
     }
 }
@@ -180,13 +254,14 @@ mod tests {
     use proptest::prelude::*;
 
     use super::super::testing::{map_of, partition_of};
-    use crate::plan::cost_map::CostMap;
+    use crate::plan::cost_map::{CostMap, WireCycles};
     use crate::plan::partition::Partition;
 
     /// Every node's cost found the plain way: each pair of neighbouring
     /// cubes of two owners charged hop by hop, with owners, boxes and routes
-    /// worked out here ([`node_fw::route::toward`], the nodes' rule).
-    fn walked(p: &Partition, map: &CostMap) -> Vec<u64> {
+    /// worked out here ([`node_fw::route::toward`], the nodes' rule); and
+    /// its bytes on each port (axis, upward) sent and received.
+    fn walked(p: &Partition, map: &CostMap) -> (Vec<u64>, Vec<[[u64; 6]; 2]>) {
         let n = map.grid.map(usize::from);
         let boxes: Vec<CubeBox> = (0..p.len()).map(|id| p.bounds(id)).collect();
         let owner = |c: [usize; 3]| {
@@ -194,7 +269,9 @@ mod tests {
             boxes.iter().position(|b| node_fw::route::toward(b, cell, 0).is_none()).unwrap()
         };
         let a = p.array.map(usize::from);
-        let route = |cost: &mut Vec<u64>, from: usize, cell: [usize; 3], per_side: u64| {
+        let mut cost = vec![0u64; p.len()];
+        let mut ports = vec![[[0u64; 6]; 2]; p.len()];
+        let mut route = |from: usize, cell: [usize; 3], per_side: u64, bytes: u64| {
             let mut at = from;
             let target = owner(cell);
             while at != target {
@@ -202,8 +279,9 @@ mod tests {
                     node_fw::route::toward(&boxes[at], cell.map(|v| v as i32), usize::from(p.driving_axis))
                         .unwrap();
                 let axis = port.axis().unwrap();
+                let up = port == node_fw::link::Port::toward(axis, true);
                 let mut c = node_fw::wiring::coord_of(at, p.array).map(usize::from);
-                if port == node_fw::link::Port::toward(axis, true) {
+                if up {
                     c[axis] += 1
                 } else {
                     c[axis] -= 1
@@ -211,28 +289,35 @@ mod tests {
                 let next = c[0] + a[0] * (c[1] + a[1] * c[2]);
                 cost[at] += per_side;
                 cost[next] += per_side;
+                ports[at][0][2 * axis + usize::from(up)] += bytes;
+                ports[next][1][2 * axis + usize::from(!up)] += bytes;
                 at = next;
             }
         };
-        let mut cost = vec![0u64; p.len()];
         for z in 0..n[2] {
             for y in 0..n[1] {
                 for x in 0..n[0] {
                     let i = x + n[0] * (y + n[1] * z);
                     let here = owner([x, y, z]);
-                    cost[here] += map.cell(i);
                     for ax in 0..3 {
                         let mut up = [x, y, z];
                         up[ax] += 1;
                         if up[ax] < n[ax] && owner(up) != here {
-                            route(&mut cost, here, up, map.up[ax][i]);
-                            route(&mut cost, owner(up), [x, y, z], map.down[ax][i]);
+                            route(here, up, map.up[ax][i], map.wire.up[ax][i]);
+                            route(owner(up), [x, y, z], map.down[ax][i], map.wire.down[ax][i]);
                         }
                     }
                 }
             }
         }
-        cost
+        for z in 0..n[2] {
+            for y in 0..n[1] {
+                for x in 0..n[0] {
+                    cost[owner([x, y, z])] += map.cell(x + n[0] * (y + n[1] * z));
+                }
+            }
+        }
+        (cost, ports)
     }
 
     proptest! {
@@ -248,7 +333,52 @@ mod tests {
             prop_assume!((0..3).all(|a| array[a] <= grid[a]));
             let p = partition_of(grid, array, d, &seeds, staggered);
             let map = map_of(grid, &values);
-            prop_assert_eq!(p.node_costs(&map), walked(&p, &map));
+            prop_assert_eq!(p.node_costs(&map), walked(&p, &map).0);
+        }
+
+        #[test]
+        fn node_times_are_the_longer_of_the_cpus_and_the_busiest_wires(
+            grid in prop::array::uniform3(2u16..=6),
+            array in prop::array::uniform3(1u16..=3),
+            d in 0u8..3,
+            seeds in prop::collection::vec(prop::collection::vec(0u16..100, 4), 40),
+            values in prop::collection::vec(0u64..1000, 1..=200),
+            bytes in prop::collection::vec(0u64..100, 1..=200),
+            cycles in (0u64..400, 0u64..1200),
+            staggered in (any::<bool>(), any::<bool>()),
+        ) {
+            prop_assume!((0..3).all(|a| array[a] <= grid[a]));
+            let p = partition_of(grid, array, d, &seeds, staggered);
+            let mut map = map_of(grid, &values);
+            let mut b = bytes.iter().cycle().copied();
+            for i in 0..map.compute.len() {
+                map.wire.host[i] = b.next().unwrap_or(0);
+                for a in 0..3 {
+                    map.wire.up[a][i] = b.next().unwrap_or(0);
+                    map.wire.down[a][i] = b.next().unwrap_or(0) / 3;
+                }
+            }
+            map.wire.cycles = WireCycles { neighbour: cycles.0, host: cycles.1 };
+            let (cpu, ports) = walked(&p, &map);
+            let host = |id: usize| {
+                let b = p.bounds(id);
+                let mut sum = 0;
+                for z in b.lo[2]..b.hi[2] {
+                    for y in b.lo[1]..b.hi[1] {
+                        for x in b.lo[0]..b.hi[0] {
+                            sum += map.wire.host[map.index([x, y, z].map(i32::from)).unwrap()];
+                        }
+                    }
+                }
+                sum
+            };
+            let expected: Vec<u64> = (0..p.len())
+                .map(|id| {
+                    let wire = ports[id].iter().flatten().copied().max().unwrap_or(0) * cycles.0;
+                    cpu[id].max(wire).max(host(id) * cycles.1)
+                })
+                .collect();
+            prop_assert_eq!(p.node_times(&map), expected);
         }
     }
 }

@@ -7,7 +7,7 @@
 //! more for each node they pass (`Partition::node_costs`). The sums are exact
 //! integers, so every price is the same as the walk's.
 
-use crate::plan::cost_map::CostMap;
+use crate::plan::cost_map::{CostMap, WireCycles};
 #[cfg(doc)]
 use crate::plan::partition::Partition;
 
@@ -78,6 +78,21 @@ pub struct MapSums {
     pub up: [BoxSums; 3],
     /// Per axis: [`CostMap::down`].
     pub down: [BoxSums; 3],
+    /// The wires' bytes, where they are priced.
+    pub wire: Option<WireSums>,
+}
+
+/// The running sums of a [`crate::plan::cost_map::WireMap`]'s bytes.
+#[derive(Debug, Clone)]
+pub struct WireSums {
+    /// Per cube: bytes to the host.
+    pub host: BoxSums,
+    /// Per axis: bytes crossing upward.
+    pub up: [BoxSums; 3],
+    /// Per axis: bytes crossing downward.
+    pub down: [BoxSums; 3],
+    /// What a byte takes on each wire.
+    pub cycles: WireCycles,
 }
 
 impl MapSums {
@@ -85,10 +100,18 @@ impl MapSums {
     pub fn new(map: &CostMap) -> Self {
         let g = map.grid;
         let sums = |v: &[u64]| BoxSums::new(g, v);
+        let w = &map.wire;
+        let wire = w.cycles.priced().then(|| WireSums {
+            host: sums(&w.host),
+            up: std::array::from_fn(|a| sums(&w.up[a])),
+            down: std::array::from_fn(|a| sums(&w.down[a])),
+            cycles: w.cycles,
+        });
         Self {
             cells: sums(&map.cells()),
             up: std::array::from_fn(|a| sums(&map.up[a])),
             down: std::array::from_fn(|a| sums(&map.down[a])),
+            wire,
         }
     }
 }
