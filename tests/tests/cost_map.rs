@@ -45,11 +45,12 @@ fn the_cost_map_accounts_for_each_nodes_busy_time() {
     // message of its own, which is what a node pays when its rays end one at
     // a time; a busy node's retirements wait for company and share messages
     // (eight or so records to one), so it pays less. The map keeps the
-    // dearer price on purpose: on the boards' links it stands in for the
-    // host link's time, which the map does not price and which bounds those
-    // frames (priced as a record of a full message, the map came within
-    // -4.0..+3.6% per node here, but the f413 preview fits of two of the
-    // four scenes in docs/results.md' defaults table ran 8% and 16% slower).
+    // dearer price on purpose: priced as a record of a full message, the map
+    // came within -4.0..+3.6% per node here, but the f413 preview fits ran
+    // slower. Before the fit priced the wires, two of the four scenes of
+    // docs/results.md' defaults table ran 8% and 16% slower; with the host
+    // link's wire priced apart, the 2x2x2 scene ran 10% slower and seed 7's
+    // 5% (two others 1% and 3% faster).
     // Before the pool shared its spare slots, refusals made forwarding nodes
     // pay up to 26% more.
     for p in [even, staggered, jagged] {

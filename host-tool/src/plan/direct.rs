@@ -424,7 +424,8 @@ impl Costs {
     /// (`retire`) fall to the cube before, which that node holds were a
     /// boundary there. A face crossed costs its sides, beside the hop, the
     /// leaving node's look and, near the end, its walk on through the clear
-    /// cubes to the first marked one, half to each side.
+    /// cubes to the first marked one, half to each side. Returns the cube
+    /// whose holder retires the ray.
     fn add_walk(
         &mut self,
         dir: [i32; 3],

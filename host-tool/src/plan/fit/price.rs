@@ -63,13 +63,7 @@ impl<'a> Pricing<'a> {
     /// bound the frame, many cuts share its longest wire; among them the
     /// CPU is still balanced, since a wire's time is an estimate.
     pub(super) fn score(&self, p: &Partition) -> Score {
-        let cpu = p.node_costs_summed(self.map.grid, &self.sums);
-        let times = match &self.sums.wire {
-            Some(wire) => {
-                p.wire_times(self.map.grid, wire).iter().zip(&cpu).map(|(&w, &c)| w.max(c)).collect()
-            }
-            None => cpu.clone(),
-        };
+        let (cpu, times) = p.cpu_and_times(self.map.grid, &self.sums);
         let most = |v: &[u64]| v.iter().copied().max().unwrap_or(0);
         (most(&times), most(&cpu), times.iter().map(|&c| u128::from(c) * u128::from(c)).sum())
     }
@@ -96,12 +90,19 @@ impl Partition {
     /// wire of its own), at what a byte takes there. The CPU alone where the
     /// map prices no wire.
     pub fn node_times(&self, map: &CostMap) -> Vec<u64> {
-        let sums = MapSums::new(map);
-        let cpu = self.node_costs_summed(map.grid, &sums);
-        match &sums.wire {
-            Some(wire) => self.wire_times(map.grid, wire).iter().zip(&cpu).map(|(&w, &c)| w.max(c)).collect(),
-            None => cpu,
-        }
+        self.cpu_and_times(map.grid, &MapSums::new(map)).1
+    }
+
+    /// Every node's CPU ([`Self::node_costs`]) and time ([`Self::node_times`]).
+    fn cpu_and_times(&self, grid: [u16; 3], sums: &MapSums) -> (Vec<u64>, Vec<u64>) {
+        let cpu = self.node_costs_summed(grid, sums);
+        let times = match &sums.wire {
+            Some(wire) => {
+                Routes::new(self).wire_times(grid, wire).iter().zip(&cpu).map(|(&w, &c)| w.max(c)).collect()
+            }
+            None => cpu.clone(),
+        };
+        (cpu, times)
     }
 
     /// [`Self::node_costs`] with `map`'s sums made once for many partitions.
@@ -118,16 +119,7 @@ impl Partition {
         });
         cost
     }
-
-    /// Each node's busiest wire's time ([`Self::node_times`]).
-    fn wire_times(&self, grid: [u16; 3], wire: &WireSums) -> Vec<u64> {
-        Routes::new(self).wire_times(grid, wire)
-    }
 }
-
-/// Where one hop of rays goes: the node it leaves, the node it reaches,
-/// the axis it crosses, and what the rays charge there.
-type Sink<'s> = dyn FnMut(usize, usize, usize, u64) + 's;
 
 /// How the nodes of a partition route a ray ([`node_fw::route::toward`]):
 /// their boxes, and the order and strides of the axes.
@@ -149,7 +141,13 @@ impl Routes {
 
     /// Sends the rays leaving every face of every box inside the grid on
     /// their way, `charges` those crossing upward and downward per axis.
-    fn every_face(&self, grid: [u16; 3], [up, down]: [&[BoxSums; 3]; 2], sink: &mut Sink<'_>) {
+    ///
+    /// `sink` takes each hop: the node it leaves, the node it reaches, the
+    /// axis it crosses, and what the rays charge there.
+    fn every_face<F>(&self, grid: [u16; 3], [up, down]: [&[BoxSums; 3]; 2], sink: &mut F)
+    where
+        F: FnMut(usize, usize, usize, u64),
+    {
         let grid = grid.map(usize::from);
         for (id, &(lo, hi)) in self.boxes.iter().enumerate() {
             for axis in 0..3 {
@@ -198,7 +196,13 @@ impl Routes {
     /// So the cubes are split by the box's bounds on that axis: those below
     /// and above hop to the neighbour that way, and those within go on to
     /// the next axis from the same node.
-    fn send(&self, sink: &mut Sink<'_>, at: usize, cubes: Cubes, rays: &Crossing<'_>) {
+    fn send<F: FnMut(usize, usize, usize, u64)>(
+        &self,
+        sink: &mut F,
+        at: usize,
+        cubes: Cubes,
+        rays: &Crossing<'_>,
+    ) {
         let (blo, bhi) = self.boxes[at];
         let outside = |a: usize| cubes.0[a] < blo[a] || cubes.1[a] > bhi[a];
         let Some(axis) = self.order.into_iter().find(|&a| outside(a)) else {
@@ -225,9 +229,9 @@ impl Routes {
     /// One hop of the rays bound for `cubes`, from `at` to its neighbour
     /// `next` along `axis`, charged; and on from there unless they are home
     /// (most are: checked here, it spares a call).
-    fn hop(
+    fn hop<F: FnMut(usize, usize, usize, u64)>(
         &self,
-        sink: &mut Sink<'_>,
+        sink: &mut F,
         (at, next, axis): (usize, usize, usize),
         cubes: Cubes,
         rays: &Crossing<'_>,
