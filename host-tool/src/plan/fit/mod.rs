@@ -24,14 +24,18 @@ use crate::plan::partition::Partition;
 use crate::threads::join;
 use price::{Pricing, Score};
 
-/// How far ahead of the even boxes a fit's busiest node must be priced for
-/// the fit to be kept, as a fraction (numerator, denominator) of the even
-/// boxes' time. The prices' errors differ between partitions of one frame:
-/// on 4x4x4 at 1 Mbaud (1000 spheres, seed 1986, 128x128) the even boxes'
-/// busiest wire was priced 13% above the board's and a fit's within 1%,
-/// and that fit, priced 8% ahead, ran 4% behind.
-const EVEN_MARGIN: (u128, u128) = (1, 8);
-
+/// How far ahead of the even boxes a fit's longest node time must be
+/// priced, where a wire's time is the longest of either, for the fit to be
+/// kept: a fraction (numerator, denominator) of the even boxes' time. The
+/// wires' prices err by different amounts on different partitions of one
+/// frame, since how full a link's batches are depends on how busy it is: on
+/// 4x4x4 at 1 Mbaud (1000 spheres, seed 1986, 128x128) the even boxes'
+/// busiest wire was priced 13% above what the board carried and a fit's
+/// within 1%, and that fit, priced 8% ahead, ran 4% behind. Where the CPUs
+/// bound both, the fit is kept if it is priced ahead at all: a margin there
+/// gave up fits 13% faster than even boxes (8x8x1 on ideal links, 256x256,
+/// seed 7).
+const WIRE_MARGIN: (u128, u128) = (1, 8);
 impl Partition {
     /// A partition fitted to a cost map: the one whose busiest node pays
     /// least, as far as a local search finds it. The planes across the
@@ -105,14 +109,18 @@ impl Partition {
         Ok(best.1.or_even(even, &pricing))
     }
 
-    /// This partition, unless the even boxes' busiest node is priced within
-    /// [`EVEN_MARGIN`] of its own: then the even boxes. The search starts
-    /// from cuts that balance the CPU alone, and where the wires bound a
-    /// frame nothing it reaches may beat the even boxes; and the prices are
-    /// estimates, so a fit must be clearly ahead to be worth its cut.
+    /// This partition, unless the even boxes are priced ahead of it, or
+    /// within [`WIRE_MARGIN`] of it where a wire bounds either: then the even
+    /// boxes. The search starts from cuts that balance the CPU alone, and
+    /// where the wires bound a frame nothing it reaches may beat the even
+    /// boxes.
     fn or_even(self, even: Self, pricing: &Pricing<'_>) -> Self {
-        let [fit, even_time] = [&self, &even].map(|p| u128::from(pricing.score(p).0));
-        if fit * EVEN_MARGIN.1 < even_time * (EVEN_MARGIN.1 - EVEN_MARGIN.0) { self } else { even }
+        let [fit, even_score] = [&self, &even].map(|p| pricing.score(p));
+        // The longest node time above the busiest CPU: a wire's.
+        let wire_bound = fit.0 > fit.1 || even_score.0 > even_score.1;
+        let (ahead, of) = if wire_bound { WIRE_MARGIN } else { (0, 1) };
+        let [fit, even_time] = [fit.0, even_score.0].map(u128::from);
+        if fit * of < even_time * (of - ahead) { self } else { even }
     }
 
     /// This partition with every slab cut into the columns all share now.
@@ -233,7 +241,7 @@ impl Partition {
 #[cfg(test)]
 mod tests {
     use super::{RowProfile, bottleneck_cuts, row_cuts};
-    use crate::plan::cost_map::CostMap;
+    use crate::plan::cost_map::{CostMap, WireCycles};
     use crate::plan::partition::Partition;
     use link_proto::Boundaries;
     use proptest::prelude::*;
@@ -313,6 +321,28 @@ mod tests {
         // The boxes tile the grid.
         let volume: u64 = (0..fitted.len()).map(|id| fitted.bounds(id).volume()).sum();
         assert_eq!(volume, 16 * 16 * 16);
+    }
+
+    #[test]
+    fn a_fit_a_little_ahead_of_even_boxes_is_kept_unless_a_wire_bounds_it() {
+        // Two nodes along x: even boxes pay 80 and 96, the cut after nine
+        // cubes 90 and 84, 6% ahead.
+        let grid = [16u16, 1, 1];
+        let compute = (0..16).map(|x| if x < 8 { 10 } else { 12 }).collect();
+        let mut map = CostMap { compute, ..CostMap::new(grid) };
+        let cut = |map: &CostMap| {
+            let p = Partition::fitted(grid, [2, 1, 1], 0, map, Boundaries::StaggeredColumns).unwrap();
+            p.bounds(0).hi[0]
+        };
+        assert_eq!(cut(&map), 9, "the CPUs bound both: the fit is ahead");
+        // The first cube's holder sends the host 95 cycles of bytes whatever
+        // the cut: its wire bounds both, and the fit is not 1/8 ahead.
+        map.wire.host[0] = 19;
+        map.wire.cycles = WireCycles { neighbour: 0, host: 5 };
+        assert_eq!(cut(&map), 8, "a wire bounds the fit: the even boxes");
+        // With the wire at 85 cycles the CPUs bound both again.
+        map.wire.host[0] = 17;
+        assert_eq!(cut(&map), 9);
     }
 
     #[test]
