@@ -4,7 +4,7 @@
 use node_fw::CubeBox;
 
 use super::rows::{RowCache, RowProfile};
-use super::sums::{BoxSums, LayerSums, MapSums, WireSums};
+use super::sums::{BoxSums, LayerSums, MapSums};
 use crate::plan::cost_map::CostMap;
 use crate::plan::partition::Partition;
 
@@ -17,8 +17,10 @@ type Cubes = ([usize; 3], [usize; 3]);
 /// The rays leaving one face of a node's box, routed together: where what
 /// they charge a hop is kept.
 struct Crossing<'a> {
-    /// The charges: [`CostMap::up`] or [`CostMap::down`] along `axis`.
-    charges: &'a BoxSums,
+    /// The cycles they charge: [`CostMap::up`] or [`CostMap::down`] along `axis`.
+    cycles: &'a BoxSums,
+    /// The bytes they put on the wire, where the wires are priced.
+    bytes: Option<&'a BoxSums>,
     axis: usize,
     /// The charges are kept at the cube below the face: for rays leaving
     /// upward, a cube before the one they are bound for.
@@ -26,15 +28,19 @@ struct Crossing<'a> {
 }
 
 impl Crossing<'_> {
-    /// What the rays bound for `cubes` charge each side of a hop.
-    fn price(&self, (mut lo, mut hi): Cubes) -> u64 {
+    /// What the rays bound for `cubes` charge each side of a hop, and the
+    /// bytes they put on its wire.
+    fn price(&self, (mut lo, mut hi): Cubes) -> (u64, u64) {
         if self.upward {
             lo[self.axis] -= 1;
             hi[self.axis] -= 1;
         }
-        self.charges.sum(lo, hi)
+        (self.cycles.sum(lo, hi), self.bytes.map_or(0, |b| b.sum(lo, hi)))
     }
 }
+
+/// Per axis, what the rays crossing each face upward and downward charge.
+type Faces<'a> = [&'a [BoxSums; 3]; 2];
 
 /// What the fit prices the candidates of one map with: the map's sums, and
 /// the rows met so far.
@@ -93,15 +99,37 @@ impl Partition {
         self.cpu_and_times(map.grid, &MapSums::new(map)).1
     }
 
-    /// Every node's CPU ([`Self::node_costs`]) and time ([`Self::node_times`]).
+    /// Every node's CPU ([`Self::node_costs`]) and time ([`Self::node_times`]),
+    /// every crossing routed once for both.
     fn cpu_and_times(&self, grid: [u16; 3], sums: &MapSums) -> (Vec<u64>, Vec<u64>) {
-        let cpu = self.node_costs_summed(grid, sums);
-        let times = match &sums.wire {
-            Some(wire) => {
-                Routes::new(self).wire_times(grid, wire).iter().zip(&cpu).map(|(&w, &c)| w.max(c)).collect()
-            }
-            None => cpu.clone(),
+        let Some(wire) = &sums.wire else {
+            let cpu = self.node_costs_summed(grid, sums);
+            return (cpu.clone(), cpu);
         };
+        let routes = Routes::new(self);
+        let mut cpu = routes.cubes(&sums.cells);
+        // Per node and port (axis, upward): bytes sent and bytes received.
+        let mut sent = vec![[0u64; 6]; routes.boxes.len()];
+        let mut received = sent.clone();
+        let bytes = Some([&wire.up, &wire.down]);
+        routes.every_face(grid, [&sums.up, &sums.down], bytes, &mut |at, next, axis, (price, bytes)| {
+            cpu[at] += price;
+            cpu[next] += price;
+            let up = usize::from(next > at);
+            sent[at][2 * axis + up] += bytes;
+            received[next][2 * axis + 1 - up] += bytes;
+        });
+        let cycles = wire.cycles;
+        let times = routes
+            .boxes
+            .iter()
+            .zip(sent.iter().zip(&received))
+            .zip(&cpu)
+            .map(|((&(lo, hi), (sent, received)), &cpu)| {
+                let busiest = sent.iter().chain(received).copied().max().unwrap_or(0);
+                cpu.max(busiest * cycles.neighbour).max(wire.host.sum(lo, hi) * cycles.host)
+            })
+            .collect();
         (cpu, times)
     }
 
@@ -112,8 +140,8 @@ impl Partition {
     /// through it on their way, all together ([`Routes::send`]).
     fn node_costs_summed(&self, grid: [u16; 3], sums: &MapSums) -> Vec<u64> {
         let routes = Routes::new(self);
-        let mut cost: Vec<u64> = routes.boxes.iter().map(|&(lo, hi)| sums.cells.sum(lo, hi)).collect();
-        routes.every_face(grid, [&sums.up, &sums.down], &mut |at, next, _, price| {
+        let mut cost = routes.cubes(&sums.cells);
+        routes.every_face(grid, [&sums.up, &sums.down], None, &mut |at, next, _, (price, _)| {
             cost[at] += price;
             cost[next] += price;
         });
@@ -139,55 +167,42 @@ impl Routes {
         Self { boxes, order: [(d + 1) % 3, (d + 2) % 3, d], stride: [1, x, x * y] }
     }
 
+    /// What each node's cubes cost.
+    fn cubes(&self, cells: &BoxSums) -> Vec<u64> {
+        self.boxes.iter().map(|&(lo, hi)| cells.sum(lo, hi)).collect()
+    }
+
     /// Sends the rays leaving every face of every box inside the grid on
-    /// their way, `charges` those crossing upward and downward per axis.
+    /// their way: `cycles` what they charge crossing upward and downward
+    /// per axis, `bytes` what they put on the wire, if the wires are priced.
     ///
     /// `sink` takes each hop: the node it leaves, the node it reaches, the
-    /// axis it crosses, and what the rays charge there.
-    fn every_face<F>(&self, grid: [u16; 3], [up, down]: [&[BoxSums; 3]; 2], sink: &mut F)
+    /// axis it crosses, and what the rays charge there and their bytes.
+    fn every_face<F>(&self, grid: [u16; 3], cycles: Faces<'_>, bytes: Option<Faces<'_>>, sink: &mut F)
     where
-        F: FnMut(usize, usize, usize, u64),
+        F: FnMut(usize, usize, usize, (u64, u64)),
     {
         let grid = grid.map(usize::from);
         for (id, &(lo, hi)) in self.boxes.iter().enumerate() {
             for axis in 0..3 {
+                let crossing = |way: usize, upward| Crossing {
+                    cycles: &cycles[way][axis],
+                    bytes: bytes.map(|b| &b[way][axis]),
+                    axis,
+                    upward,
+                };
                 if hi[axis] < grid[axis] {
                     let mut beyond = (lo, hi);
                     (beyond.0[axis], beyond.1[axis]) = (hi[axis], hi[axis] + 1);
-                    let up = Crossing { charges: &up[axis], axis, upward: true };
-                    self.send(sink, id, beyond, &up);
+                    self.send(sink, id, beyond, &crossing(0, true));
                 }
                 if lo[axis] > 0 {
                     let mut beyond = (lo, hi);
                     (beyond.0[axis], beyond.1[axis]) = (lo[axis] - 1, lo[axis]);
-                    let down = Crossing { charges: &down[axis], axis, upward: false };
-                    self.send(sink, id, beyond, &down);
+                    self.send(sink, id, beyond, &crossing(1, false));
                 }
             }
         }
-    }
-
-    /// Each node's longest wire time: its host link's bytes, or the bytes
-    /// one of its neighbour links carries either way (each way is a wire of
-    /// its own), at what a byte takes there.
-    fn wire_times(&self, grid: [u16; 3], wire: &WireSums) -> Vec<u64> {
-        // Per node and port (axis, upward): bytes sent and bytes received.
-        let mut sent = vec![[0u64; 6]; self.boxes.len()];
-        let mut received = sent.clone();
-        self.every_face(grid, [&wire.up, &wire.down], &mut |at, next, axis, bytes| {
-            let up = usize::from(next > at);
-            sent[at][2 * axis + up] += bytes;
-            received[next][2 * axis + 1 - up] += bytes;
-        });
-        let cycles = wire.cycles;
-        self.boxes
-            .iter()
-            .zip(sent.iter().zip(&received))
-            .map(|(&(lo, hi), (sent, received))| {
-                let busiest = sent.iter().chain(received).copied().max().unwrap_or(0);
-                (busiest * cycles.neighbour).max(wire.host.sum(lo, hi) * cycles.host)
-            })
-            .collect()
     }
 
     /// Charges both ends of every hop of the rays at node `at` bound for
@@ -196,7 +211,7 @@ impl Routes {
     /// So the cubes are split by the box's bounds on that axis: those below
     /// and above hop to the neighbour that way, and those within go on to
     /// the next axis from the same node.
-    fn send<F: FnMut(usize, usize, usize, u64)>(
+    fn send<F: FnMut(usize, usize, usize, (u64, u64))>(
         &self,
         sink: &mut F,
         at: usize,
@@ -229,7 +244,7 @@ impl Routes {
     /// One hop of the rays bound for `cubes`, from `at` to its neighbour
     /// `next` along `axis`, charged; and on from there unless they are home
     /// (most are: checked here, it spares a call).
-    fn hop<F: FnMut(usize, usize, usize, u64)>(
+    fn hop<F: FnMut(usize, usize, usize, (u64, u64))>(
         &self,
         sink: &mut F,
         (at, next, axis): (usize, usize, usize),
