@@ -272,7 +272,7 @@ mod tests {
     use node_fw::CubeBox;
     use proptest::prelude::*;
 
-    use super::super::testing::{map_of, partition_of};
+    use super::super::testing::partitions_and_maps;
     use crate::plan::cost_map::{CostMap, WireCycles};
     use crate::plan::partition::Partition;
 
@@ -341,34 +341,16 @@ mod tests {
 
     proptest! {
         #[test]
-        fn node_costs_by_sums_agree_with_walking_every_face(
-            grid in prop::array::uniform3(2u16..=6),
-            array in prop::array::uniform3(1u16..=3),
-            d in 0u8..3,
-            seeds in prop::collection::vec(prop::collection::vec(0u16..100, 4), 40),
-            values in prop::collection::vec(0u64..1000, 1..=200),
-            staggered in (any::<bool>(), any::<bool>()),
-        ) {
-            prop_assume!((0..3).all(|a| array[a] <= grid[a]));
-            let p = partition_of(grid, array, d, &seeds, staggered);
-            let map = map_of(grid, &values);
+        fn node_costs_by_sums_agree_with_walking_every_face((p, map) in partitions_and_maps(true)) {
             prop_assert_eq!(p.node_costs(&map), walked(&p, &map).0);
         }
 
         #[test]
         fn node_times_are_the_longer_of_the_cpus_and_the_busiest_wires(
-            grid in prop::array::uniform3(2u16..=6),
-            array in prop::array::uniform3(1u16..=3),
-            d in 0u8..3,
-            seeds in prop::collection::vec(prop::collection::vec(0u16..100, 4), 40),
-            values in prop::collection::vec(0u64..1000, 1..=200),
+            (p, mut map) in partitions_and_maps(true),
             bytes in prop::collection::vec(0u64..100, 1..=200),
             cycles in (0u64..400, 0u64..1200),
-            staggered in (any::<bool>(), any::<bool>()),
         ) {
-            prop_assume!((0..3).all(|a| array[a] <= grid[a]));
-            let p = partition_of(grid, array, d, &seeds, staggered);
-            let mut map = map_of(grid, &values);
             let mut b = bytes.iter().cycle().copied();
             for i in 0..map.compute.len() {
                 map.wire.host[i] = b.next().unwrap_or(0);

@@ -125,7 +125,7 @@ mod tests {
     use proptest::prelude::*;
 
     use super::super::sums::LayerSums;
-    use super::super::testing::{map_of, partition_of};
+    use super::super::testing::partitions_and_maps;
     use super::RowProfile;
     use crate::plan::cost_map::CostMap;
     use crate::plan::partition::Partition;
@@ -172,19 +172,9 @@ mod tests {
 
     proptest! {
         #[test]
-        fn row_profiles_by_sums_agree_with_walking_every_cube(
-            grid in prop::array::uniform3(2u16..=6),
-            array in prop::array::uniform3(1u16..=3),
-            d in 0u8..3,
-            seeds in prop::collection::vec(prop::collection::vec(0u16..100, 4), 40),
-            values in prop::collection::vec(0u64..1000, 1..=200),
-            slabs in any::<bool>(),
-        ) {
-            prop_assume!((0..3).all(|a| array[a] <= grid[a]));
-            let p = partition_of(grid, array, d, &seeds, (slabs, false));
-            let map = map_of(grid, &values);
-            let sums = LayerSums::new(&map, d);
-            let rows = p.len() / usize::from(array[usize::from(d)]);
+        fn row_profiles_by_sums_agree_with_walking_every_cube((p, map) in partitions_and_maps(false)) {
+            let sums = LayerSums::new(&map, p.driving_axis);
+            let rows = p.len() / usize::from(p.array[usize::from(p.driving_axis)]);
             for row in 0..rows {
                 prop_assert_eq!(p.row_profile(&sums, row), walked(&p, &map, row));
             }

@@ -1,8 +1,31 @@
 //! Cost maps and partitions made from drawn numbers, for the fit's property
 //! tests.
 
+use proptest::prelude::*;
+
 use crate::plan::cost_map::CostMap;
 use crate::plan::partition::Partition;
+
+/// A partition of a small grid over an array no larger, every cut drawn,
+/// and a map of the grid drawn the same way ([`map_of`]); its rows cut
+/// their own cuts only where `staggered_rows` allows.
+pub fn partitions_and_maps(staggered_rows: bool) -> impl Strategy<Value = (Partition, CostMap)> {
+    (
+        prop::array::uniform3(2u16..=6),
+        prop::array::uniform3(1u16..=3),
+        0u8..3,
+        prop::collection::vec(prop::collection::vec(0u16..100, 4), 40),
+        prop::collection::vec(0u64..1000, 1..=200),
+        (any::<bool>(), any::<bool>()),
+    )
+        .prop_filter("an array no larger than its grid", |(grid, array, ..)| {
+            (0..3).all(|a| array[a] <= grid[a])
+        })
+        .prop_map(move |(grid, array, d, seeds, values, (slabs, rows))| {
+            let p = partition_of(grid, array, d, &seeds, (slabs, rows && staggered_rows));
+            (p, map_of(grid, &values))
+        })
+}
 
 /// A map of `grid` whose every entry is the next of `values`, over and over
 /// (messages and downward crossings a fraction, so that entries differ).
