@@ -28,10 +28,12 @@ use price::{Pricing, Score};
 /// priced, where a wire's time is the longest of either, for the fit to be
 /// kept: a fraction (numerator, denominator) of the even boxes' time. The
 /// wires' prices err by different amounts on different partitions of one
-/// frame, since how full a link's batches are depends on how busy it is: on
-/// 4x4x4 at 1 Mbaud (1000 spheres, seed 1986, 128x128) the even boxes'
-/// busiest wire was priced 13% above what the board carried and a fit's
-/// within 1%, and that fit, priced 8% ahead, ran 4% behind. Where the CPUs
+/// frame: on 4x4x4 at 1 Mbaud (1000 spheres, seed 1986, 128x128, rows along
+/// the paper's driving axis) the even boxes' busiest wire was priced 13%
+/// above what the board carried and a fit's within 1%, and that fit, priced
+/// 8% ahead, ran 4% behind. (Each ray is priced at its share of a full batch,
+/// the fewest bytes it can take, so the excess is the preview's: its rays,
+/// at half the resolution, stand for the frame's only roughly.) Where the CPUs
 /// bound both, the fit is kept if it is priced ahead at all: a margin there
 /// gave up fits 13% faster than even boxes (8x8x1 on ideal links, 256x256,
 /// seed 7).
