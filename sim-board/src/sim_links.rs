@@ -213,11 +213,12 @@ pub fn frame_len(msg: &Message) -> usize {
     encode_frame(&frame, &mut buf).unwrap_or(MAX_FRAME_LEN)
 }
 
-/// Bytes a message takes on a busy link, where it travels in a batch of as
-/// many like it as a frame holds (the rule by which a waiting batch takes
-/// another message): its share of the batch's frame.
-pub fn batched_len(msg: &Message) -> f64 {
-    let alone = frame_len(msg) as u64;
+/// Bytes a message whose frame of its own is `alone` bytes ([`frame_len`])
+/// takes on a busy link, where it travels in a batch of as many like it as
+/// a frame holds (the rule by which a waiting batch takes another message):
+/// its share of the batch's frame.
+pub fn batched_len(alone: usize) -> f64 {
+    let alone = alone as u64;
     let (first, more) = (alone + BATCH_HEAD, alone.saturating_sub(FRAME_ALONE).max(1));
     let count = 1 + (MAX_FRAME_LEN as u64).saturating_sub(first) / more;
     (first + (count - 1) * more) as f64 / count as f64
@@ -237,7 +238,7 @@ mod tests {
             while port.join(alone, 0).is_some() {}
             let w = port.waiting.unwrap();
             let share = w.len as f64 / w.count as f64;
-            assert_eq!(batched_len(&msg), share, "{msg:?}");
+            assert_eq!(batched_len(frame_len(&msg)), share, "{msg:?}");
             assert!(share < alone as f64);
         }
     }

@@ -241,12 +241,9 @@ impl HopPrice {
 
     /// One side of a hop of `ray`.
     fn of(&self, ray: &RayMsg) -> Hop {
-        let msg = Message::GrantedRay(on_the_wire(ray));
-        let cycles = match self.byte {
-            0 => self.fixed,
-            byte => self.fixed + byte * frame_len(&msg),
-        };
-        Hop { cycles, bytes: sim_board::sim_links::batched_len(&msg).round() as u64 }
+        let alone = frame_len(&Message::GrantedRay(on_the_wire(ray)));
+        let bytes = sim_board::sim_links::batched_len(alone as usize).round() as u64;
+        Hop { cycles: self.fixed + self.byte * alone, bytes }
     }
 }
 

@@ -87,7 +87,7 @@ impl Partition {
     /// forwards it along that axis to the owner, every node on the way paying
     /// both sides of a hop.
     pub fn node_costs(&self, map: &CostMap) -> Vec<u64> {
-        self.node_costs_summed(map.grid, &MapSums::new(map))
+        self.cpu_and_wires(map.grid, &MapSums::new(map)).0
     }
 
     /// Every node's time under `map`: the longer of its CPU's
@@ -102,16 +102,30 @@ impl Partition {
     /// Every node's CPU ([`Self::node_costs`]) and time ([`Self::node_times`]),
     /// every crossing routed once for both.
     fn cpu_and_times(&self, grid: [u16; 3], sums: &MapSums) -> (Vec<u64>, Vec<u64>) {
-        let Some(wire) = &sums.wire else {
-            let cpu = self.node_costs_summed(grid, sums);
-            return (cpu.clone(), cpu);
+        let (cpu, wires) = self.cpu_and_wires(grid, sums);
+        let times = match wires {
+            Some(wires) => cpu.iter().zip(wires).map(|(&c, w)| c.max(w)).collect(),
+            None => cpu.clone(),
         };
+        (cpu, times)
+    }
+
+    /// Every node's CPU, and its busiest wire's time where `sums` prices the
+    /// wires: its host link's bytes, or those one of its neighbour links
+    /// carries either way, at what a byte takes there.
+    ///
+    /// Every crossing lies on one face of the box it leaves: a node pays its
+    /// cubes, and each face of its box inside the grid sends the rays leaving
+    /// through it on their way, all together ([`Routes::send`]), their cycles
+    /// and bytes summed at each hop.
+    fn cpu_and_wires(&self, grid: [u16; 3], sums: &MapSums) -> (Vec<u64>, Option<Vec<u64>>) {
         let routes = Routes::new(self);
         let mut cpu = routes.cubes(&sums.cells);
         // Per node and port (axis, upward): bytes sent and bytes received.
         let mut sent = vec![[0u64; 6]; routes.boxes.len()];
         let mut received = sent.clone();
-        let bytes = Some([&wire.up, &wire.down]);
+        let wire = sums.wire.as_ref();
+        let bytes = wire.map(|w| [&w.up, &w.down]);
         routes.every_face(grid, [&sums.up, &sums.down], bytes, &mut |at, next, axis, (price, bytes)| {
             cpu[at] += price;
             cpu[next] += price;
@@ -119,33 +133,22 @@ impl Partition {
             sent[at][2 * axis + up] += bytes;
             received[next][2 * axis + 1 - up] += bytes;
         });
-        let cycles = wire.cycles;
-        let times = routes
-            .boxes
-            .iter()
-            .zip(sent.iter().zip(&received))
-            .zip(&cpu)
-            .map(|((&(lo, hi), (sent, received)), &cpu)| {
-                let busiest = sent.iter().chain(received).copied().max().unwrap_or(0);
-                cpu.max(busiest * cycles.neighbour).max(wire.host.sum(lo, hi) * cycles.host)
-            })
-            .collect();
-        (cpu, times)
-    }
-
-    /// [`Self::node_costs`] with `map`'s sums made once for many partitions.
-    ///
-    /// Every crossing lies on one face of the box it leaves: a node pays its
-    /// cubes, and each face of its box inside the grid sends the rays leaving
-    /// through it on their way, all together ([`Routes::send`]).
-    fn node_costs_summed(&self, grid: [u16; 3], sums: &MapSums) -> Vec<u64> {
-        let routes = Routes::new(self);
-        let mut cost = routes.cubes(&sums.cells);
-        routes.every_face(grid, [&sums.up, &sums.down], None, &mut |at, next, _, (price, _)| {
-            cost[at] += price;
-            cost[next] += price;
+        let wires = wire.map(|wire| {
+            let cycles = wire.cycles;
+            let ports = sent.iter().zip(&received);
+            let busiest =
+                |(sent, received): (&[u64; 6], &[u64; 6])| sent.iter().chain(received).copied().max();
+            routes
+                .boxes
+                .iter()
+                .zip(ports)
+                .map(|(&(lo, hi), ports)| {
+                    let neighbour = busiest(ports).unwrap_or(0) * cycles.neighbour;
+                    neighbour.max(wire.host.sum(lo, hi) * cycles.host)
+                })
+                .collect()
         });
-        cost
+        (cpu, wires)
     }
 }
 
