@@ -109,10 +109,12 @@ impl Partition {
     /// The box of node `id`.
     pub fn bounds(&self, id: usize) -> CubeBox {
         let c = self.coord(id);
-        CubeBox {
-            lo: std::array::from_fn(|a| self.cuts_at(a, c)[usize::from(c[a])]),
-            hi: std::array::from_fn(|a| self.cuts_at(a, c)[usize::from(c[a]) + 1]),
-        }
+        let span = |a: usize| {
+            let (cuts, i) = (self.cuts_at(a, c), usize::from(c[a]));
+            (cuts[i], cuts[i + 1])
+        };
+        let spans: [(u16, u16); 3] = std::array::from_fn(span);
+        CubeBox { lo: spans.map(|s| s.0), hi: spans.map(|s| s.1) }
     }
 
     /// Whether node `id` needs `sphere` sent: the node keeps it (its surface

@@ -160,19 +160,19 @@ impl Partition {
     /// where slabs cut their columns), rows re-cut, while that lowers the
     /// busiest node's cost (ties: the sum of squares); returns the score.
     fn refine(&mut self, pricing: &mut Pricing<'_>, most: Boundaries) -> Score {
-        let mut best = self.cut_rows(pricing, most);
+        let mut best = self.cut_rows(pricing, most, None).unwrap_or(price::WORST);
         // Each accepted move lowers the score, so this ends; the cap bounds the time.
         for _ in 0..4 * usize::from(pricing.grid().iter().copied().max().unwrap_or(1)) {
             let mut improved = false;
             for plane in self.movable_planes() {
                 for step in [-1, 1] {
                     let mut next = self.clone();
-                    if next.move_plane(plane, step) {
-                        let s = next.cut_rows(pricing, most);
-                        if s < best {
-                            (*self, best) = (next, s);
-                            improved = true;
-                        }
+                    if next.move_plane(plane, step)
+                        && let Some(s) = next.cut_rows(pricing, most, Some(best))
+                        && s < best
+                    {
+                        (*self, best) = (next, s);
+                        improved = true;
                     }
                 }
             }
@@ -217,25 +217,42 @@ impl Partition {
     /// Cuts the rows along the driving axis, each on its own (staggered, as
     /// sliding leaves them, if `most` allows) or all alike (no ray forwarded),
     /// whichever leaves the busiest node paying less; returns that score.
-    fn cut_rows(&mut self, pricing: &mut Pricing<'_>, most: Boundaries) -> Score {
+    /// `None` if both score worse than `beat`: a candidate of the local
+    /// search is priced only as far as it could still win.
+    fn cut_rows(
+        &mut self,
+        pricing: &mut Pricing<'_>,
+        most: Boundaries,
+        beat: Option<Score>,
+    ) -> Option<Score> {
         let d = usize::from(self.driving_axis);
         let parts = usize::from(self.array[d]);
         let (rows, own) = pricing.rows(self);
         let mut alike = Self { row_cuts: None, ..self.clone() };
         alike.cuts[d] = row_cuts(&rows, parts);
         let staggered = Self { row_cuts: Some(own), ..self.clone() };
-        let a = pricing.score(&alike);
+        // A node past the longest time of `beat` scores worse than it.
+        let limit = beat.map_or(u64::MAX, |b| b.0);
+        let a = pricing.score_within(&alike, limit);
         if most == Boundaries::Whole {
             *self = alike;
             return a;
         }
-        let s = pricing.score(&staggered);
-        if s < a {
-            *self = staggered;
-            s
-        } else {
-            *self = alike;
-            a
+        // Staggered rows are taken only if they score below the alike rows.
+        let s = pricing.score_within(&staggered, a.map_or(limit, |a| a.0));
+        match (a, s) {
+            (Some(a), Some(s)) if a <= s => {
+                *self = alike;
+                Some(a)
+            }
+            (_, Some(s)) => {
+                *self = staggered;
+                Some(s)
+            }
+            (a, None) => {
+                *self = alike;
+                a
+            }
         }
     }
 }
@@ -395,7 +412,7 @@ mod tests {
                 let mut p = Partition::even(grid, [2, 2, 2], 2).unwrap();
                 (p.cuts[0][1], p.cuts[1][1]) = (x, y);
                 let mut pricing = super::Pricing::new(&map, 2);
-                whole = whole.min(p.cut_rows(&mut pricing, Boundaries::StaggeredRows).0);
+                whole = whole.min(p.cut_rows(&mut pricing, Boundaries::StaggeredRows, None).unwrap().0);
             }
         }
         let slabs = fitted.slab_cuts.as_ref().expect("columns cut per slab");

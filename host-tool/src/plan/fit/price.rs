@@ -1,6 +1,8 @@
 //! What each node pays under a cost map, every boundary crossing charged
 //! hop by hop as the nodes route it.
 
+use std::ops::ControlFlow;
+
 use node_fw::CubeBox;
 
 use super::rows::{RowCache, RowProfile};
@@ -10,6 +12,9 @@ use crate::plan::partition::Partition;
 
 /// A fit's score, lowest best ([`Pricing::score`]).
 pub(super) type Score = (u64, u64, u128);
+
+/// A score worse than any partition's.
+pub(super) const WORST: Score = (u64::MAX, u64::MAX, u128::MAX);
 
 /// A box of cubes, `lo <= c < hi` on every axis.
 type Cubes = ([usize; 3], [usize; 3]);
@@ -69,15 +74,30 @@ impl<'a> Pricing<'a> {
     /// bound the frame, many cuts share its longest wire; among them the
     /// CPU is still balanced, since a wire's time is an estimate.
     pub(super) fn score(&self, p: &Partition) -> Score {
-        let (cpu, times) = p.cpu_and_times(self.map.grid, &self.sums);
-        let most = |v: &[u64]| v.iter().copied().max().unwrap_or(0);
-        (most(&times), most(&cpu), times.iter().map(|&c| u128::from(c) * u128::from(c)).sum())
+        // No node's time is past the largest u64.
+        self.score_within(p, u64::MAX).unwrap_or(WORST)
+    }
+
+    /// `p`'s [`Self::score`], unless some node's time is past `limit`:
+    /// then it scores worse than any partition whose nodes all keep within
+    /// it, and is given up as soon as that shows. Most candidates of the
+    /// local search are worse than the partition they would replace, and
+    /// most show it early.
+    pub(super) fn score_within(&self, p: &Partition, limit: u64) -> Option<Score> {
+        let (cpu, times) = p.cpu_and_times(self.map.grid, &self.sums, limit)?;
+        Some(score_of(&cpu, &times))
     }
 
     /// `p`'s rows, each profiled and cut on its own ([`RowCache::rows`]).
     pub(super) fn rows(&mut self, p: &Partition) -> (Vec<RowProfile>, Vec<Vec<u16>>) {
         self.rows.rows(p, &self.layers)
     }
+}
+
+/// The score of the nodes' CPUs and times.
+fn score_of(cpu: &[u64], times: &[u64]) -> Score {
+    let most = |v: &[u64]| v.iter().copied().max().unwrap_or(0);
+    (most(times), most(cpu), times.iter().map(|&c| u128::from(c) * u128::from(c)).sum())
 }
 
 impl Partition {
@@ -87,7 +107,7 @@ impl Partition {
     /// forwards it along that axis to the owner, every node on the way paying
     /// both sides of a hop.
     pub fn node_costs(&self, map: &CostMap) -> Vec<u64> {
-        self.cpu_and_wires(map.grid, &MapSums::new(map)).0
+        self.cpu_and_wires(map.grid, &MapSums::new(map), u64::MAX).map(|(cpu, _)| cpu).unwrap_or_default()
     }
 
     /// Every node's time under `map`: the longer of its CPU's
@@ -96,59 +116,74 @@ impl Partition {
     /// wire of its own), at what a byte takes there. The CPU alone where the
     /// map prices no wire.
     pub fn node_times(&self, map: &CostMap) -> Vec<u64> {
-        self.cpu_and_times(map.grid, &MapSums::new(map)).1
+        self.cpu_and_times(map.grid, &MapSums::new(map), u64::MAX).map(|(_, times)| times).unwrap_or_default()
     }
 
     /// Every node's CPU ([`Self::node_costs`]) and time ([`Self::node_times`]),
-    /// every crossing routed once for both.
-    fn cpu_and_times(&self, grid: [u16; 3], sums: &MapSums) -> (Vec<u64>, Vec<u64>) {
-        let (cpu, wires) = self.cpu_and_wires(grid, sums);
+    /// every crossing routed once for both; `None` once some node's time is
+    /// past `limit`.
+    fn cpu_and_times(&self, grid: [u16; 3], sums: &MapSums, limit: u64) -> Option<(Vec<u64>, Vec<u64>)> {
+        let (cpu, wires) = self.cpu_and_wires(grid, sums, limit)?;
         let times = match wires {
             Some(wires) => cpu.iter().zip(wires).map(|(&c, w)| c.max(w)).collect(),
             None => cpu.clone(),
         };
-        (cpu, times)
+        Some((cpu, times))
     }
 
     /// Every node's CPU, and its busiest wire's time where `sums` prices the
     /// wires: its host link's bytes, or those one of its neighbour links
-    /// carries either way, at what a byte takes there.
+    /// carries either way, at what a byte takes there. `None` as soon as
+    /// some node's CPU or wire is past `limit`: every charge only adds.
     ///
     /// Every crossing lies on one face of the box it leaves: a node pays its
     /// cubes, and each face of its box inside the grid sends the rays leaving
     /// through it on their way, all together ([`Routes::send`]), their cycles
     /// and bytes summed at each hop.
-    fn cpu_and_wires(&self, grid: [u16; 3], sums: &MapSums) -> (Vec<u64>, Option<Vec<u64>>) {
+    fn cpu_and_wires(
+        &self,
+        grid: [u16; 3],
+        sums: &MapSums,
+        limit: u64,
+    ) -> Option<(Vec<u64>, Option<Vec<u64>>)> {
         let routes = Routes::new(self);
+        let wire = sums.wire.as_ref();
         let mut cpu = routes.cubes(&sums.cells);
+        let host =
+            wire.map(|w| routes.cubes(&w.host).into_iter().map(|b| b * w.cycles.host).collect::<Vec<_>>());
+        if cpu.iter().chain(host.iter().flatten()).any(|&t| t > limit) {
+            return None;
+        }
+        // A port's bytes past this take its wire past `limit`.
+        let byte_limit = wire.map_or(u64::MAX, |w| limit.checked_div(w.cycles.neighbour).unwrap_or(u64::MAX));
         // Per node and port (axis, upward): bytes sent and bytes received.
         let mut sent = vec![[0u64; 6]; routes.boxes.len()];
         let mut received = sent.clone();
-        let wire = sums.wire.as_ref();
         let bytes = wire.map(|w| [&w.up, &w.down]);
-        routes.every_face(grid, [&sums.up, &sums.down], bytes, &mut |at, next, axis, (price, bytes)| {
+        let mut sink = |at: usize, next: usize, axis: usize, (price, bytes): (u64, u64)| {
             cpu[at] += price;
             cpu[next] += price;
             let up = usize::from(next > at);
-            sent[at][2 * axis + up] += bytes;
-            received[next][2 * axis + 1 - up] += bytes;
-        });
-        let wires = wire.map(|wire| {
-            let cycles = wire.cycles;
-            let ports = sent.iter().zip(&received);
+            let out = &mut sent[at][2 * axis + up];
+            *out += bytes;
+            let back = &mut received[next][2 * axis + 1 - up];
+            *back += bytes;
+            let past = cpu[at] > limit || cpu[next] > limit || *out > byte_limit || *back > byte_limit;
+            if past { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
+        };
+        if routes.every_face(grid, [&sums.up, &sums.down], bytes, &mut sink).is_break() {
+            return None;
+        }
+        let wires = wire.zip(host).map(|(wire, host)| {
             let busiest =
                 |(sent, received): (&[u64; 6], &[u64; 6])| sent.iter().chain(received).copied().max();
-            routes
-                .boxes
-                .iter()
-                .zip(ports)
-                .map(|(&(lo, hi), ports)| {
-                    let neighbour = busiest(ports).unwrap_or(0) * cycles.neighbour;
-                    neighbour.max(wire.host.sum(lo, hi) * cycles.host)
-                })
+            sent.iter()
+                .zip(&received)
+                .zip(host)
+                .map(|(ports, host)| (busiest(ports).unwrap_or(0) * wire.cycles.neighbour).max(host))
                 .collect()
         });
-        (cpu, wires)
+        Some((cpu, wires))
     }
 }
 
@@ -181,9 +216,15 @@ impl Routes {
     ///
     /// `sink` takes each hop: the node it leaves, the node it reaches, the
     /// axis it crosses, and what the rays charge there and their bytes.
-    fn every_face<F>(&self, grid: [u16; 3], cycles: Faces<'_>, bytes: Option<Faces<'_>>, sink: &mut F)
+    fn every_face<F>(
+        &self,
+        grid: [u16; 3],
+        cycles: Faces<'_>,
+        bytes: Option<Faces<'_>>,
+        sink: &mut F,
+    ) -> ControlFlow<()>
     where
-        F: FnMut(usize, usize, usize, (u64, u64)),
+        F: FnMut(usize, usize, usize, (u64, u64)) -> ControlFlow<()>,
     {
         let grid = grid.map(usize::from);
         for (id, &(lo, hi)) in self.boxes.iter().enumerate() {
@@ -197,15 +238,16 @@ impl Routes {
                 if hi[axis] < grid[axis] {
                     let mut beyond = (lo, hi);
                     (beyond.0[axis], beyond.1[axis]) = (hi[axis], hi[axis] + 1);
-                    self.send(sink, id, beyond, &crossing(0, true));
+                    self.send(sink, id, beyond, &crossing(0, true))?;
                 }
                 if lo[axis] > 0 {
                     let mut beyond = (lo, hi);
                     (beyond.0[axis], beyond.1[axis]) = (lo[axis] - 1, lo[axis]);
-                    self.send(sink, id, beyond, &crossing(1, false));
+                    self.send(sink, id, beyond, &crossing(1, false))?;
                 }
             }
         }
+        ControlFlow::Continue(())
     }
 
     /// Charges both ends of every hop of the rays at node `at` bound for
@@ -214,17 +256,17 @@ impl Routes {
     /// So the cubes are split by the box's bounds on that axis: those below
     /// and above hop to the neighbour that way, and those within go on to
     /// the next axis from the same node.
-    fn send<F: FnMut(usize, usize, usize, (u64, u64))>(
+    fn send<F: FnMut(usize, usize, usize, (u64, u64)) -> ControlFlow<()>>(
         &self,
         sink: &mut F,
         at: usize,
         cubes: Cubes,
         rays: &Crossing<'_>,
-    ) {
+    ) -> ControlFlow<()> {
         let (blo, bhi) = self.boxes[at];
         let outside = |a: usize| cubes.0[a] < blo[a] || cubes.1[a] > bhi[a];
         let Some(axis) = self.order.into_iter().find(|&a| outside(a)) else {
-            return;
+            return ControlFlow::Continue(());
         };
         let (lo, hi) = (cubes.0[axis], cubes.1[axis]);
         let part = |from: usize, to: usize| {
@@ -233,32 +275,34 @@ impl Routes {
             p
         };
         if lo < blo[axis] {
-            self.hop(sink, (at, at - self.stride[axis], axis), part(lo, hi.min(blo[axis])), rays);
+            self.hop(sink, (at, at - self.stride[axis], axis), part(lo, hi.min(blo[axis])), rays)?;
         }
         if hi > bhi[axis] {
-            self.hop(sink, (at, at + self.stride[axis], axis), part(lo.max(bhi[axis]), hi), rays);
+            self.hop(sink, (at, at + self.stride[axis], axis), part(lo.max(bhi[axis]), hi), rays)?;
         }
         let within = part(lo.max(blo[axis]), hi.min(bhi[axis]));
         if within.0[axis] < within.1[axis] {
-            self.send(sink, at, within, rays);
+            return self.send(sink, at, within, rays);
         }
+        ControlFlow::Continue(())
     }
 
     /// One hop of the rays bound for `cubes`, from `at` to its neighbour
     /// `next` along `axis`, charged; and on from there unless they are home
     /// (most are: checked here, it spares a call).
-    fn hop<F: FnMut(usize, usize, usize, (u64, u64))>(
+    fn hop<F: FnMut(usize, usize, usize, (u64, u64)) -> ControlFlow<()>>(
         &self,
         sink: &mut F,
         (at, next, axis): (usize, usize, usize),
         cubes: Cubes,
         rays: &Crossing<'_>,
-    ) {
-        sink(at, next, axis, rays.price(cubes));
+    ) -> ControlFlow<()> {
+        sink(at, next, axis, rays.price(cubes))?;
         let (nlo, nhi) = self.boxes[next];
         if (0..3).any(|a| cubes.0[a] < nlo[a] || cubes.1[a] > nhi[a]) {
-            self.send(sink, next, cubes, rays);
+            return self.send(sink, next, cubes, rays);
         }
+        ControlFlow::Continue(())
     }
 }
 
@@ -276,6 +320,7 @@ mod tests {
     use proptest::prelude::*;
 
     use super::super::testing::partitions_and_maps;
+    use super::Pricing;
     use crate::plan::cost_map::{CostMap, WireCycles};
     use crate::plan::partition::Partition;
 
@@ -342,10 +387,25 @@ mod tests {
         (cost, ports)
     }
 
+    /// A partition priced within a limit, its nodes' times `times`: the
+    /// whole score where every node keeps within the limit, else none.
+    fn priced_within_a_limit(p: &Partition, map: &CostMap, times: &[u64]) -> Result<(), TestCaseError> {
+        let pricing = Pricing::new(map, p.driving_axis);
+        let longest = times.iter().copied().max().unwrap_or(0);
+        prop_assert_eq!(pricing.score(p).0, longest);
+        for limit in [longest.saturating_sub(1), longest, longest + 1, u64::MAX] {
+            let within = pricing.score_within(p, limit);
+            prop_assert_eq!(within, (longest <= limit).then(|| pricing.score(p)), "limit {}", limit);
+        }
+        Ok(())
+    }
+
     proptest! {
         #[test]
         fn node_costs_by_sums_agree_with_walking_every_face((p, map) in partitions_and_maps(true)) {
-            prop_assert_eq!(p.node_costs(&map), walked(&p, &map).0);
+            let cpu = walked(&p, &map).0;
+            prop_assert_eq!(p.node_costs(&map), cpu.clone());
+            priced_within_a_limit(&p, &map, &cpu)?;
         }
 
         #[test]
@@ -382,7 +442,8 @@ mod tests {
                     cpu[id].max(wire).max(host(id) * cycles.1)
                 })
                 .collect();
-            prop_assert_eq!(p.node_times(&map), expected);
+            prop_assert_eq!(p.node_times(&map), expected.clone());
+            priced_within_a_limit(&p, &map, &expected)?;
         }
     }
 }
