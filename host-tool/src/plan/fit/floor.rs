@@ -220,11 +220,12 @@ impl LayerSums {
         for s1 in s0 + 1..=gs {
             for c0 in 0..gc {
                 for c1 in c0 + 1..=gc {
-                    self.profile_into([s0, s1, c0, c1], &mut prefix, &mut plane);
-                    let held = prefix.last().copied().unwrap_or(0);
+                    let r = [s0, s1, c0, c1];
+                    let held = self.held(r);
                     rows[RowTable::key([gs, gc], 0, s1, c0, c1)] = if u128::from(held) > most {
                         held.div_ceil(parts as u64)
                     } else {
+                        self.profile_into(r, &mut prefix, &mut plane);
                         least_busiest_cost(&prefix, &plane, parts, cap)
                     };
                 }

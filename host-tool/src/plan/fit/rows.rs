@@ -176,7 +176,13 @@ mod tests {
             let sums = LayerSums::new(&map, p.driving_axis);
             let rows = p.len() / usize::from(p.array[usize::from(p.driving_axis)]);
             for row in 0..rows {
-                prop_assert_eq!(p.row_profile(&sums, row), walked(&p, &map, row));
+                let expected = walked(&p, &map, row);
+                prop_assert_eq!(p.row_profile(&sums, row), expected.clone());
+                // What the whole row holds, from the layers' sums added up.
+                let [s, c] = p.routed_axes();
+                let ((s0, s1), (c0, c1)) = (p.row_span(row, s), p.row_span(row, c));
+                let held = sums.held([s0, s1, c0, c1].map(usize::from));
+                prop_assert_eq!(held, expected.layers.iter().sum::<u64>());
             }
         }
     }

@@ -124,17 +124,72 @@ impl MapSums {
 pub(super) struct LayerSums {
     /// Cubes along the slab, column and driving axes.
     pub(super) g: [usize; 3],
-    /// Per layer, 2-D running sums of the cubes' costs: `[c][s]`, one
-    /// past each, `g[0] + 1` wide.
-    cubes: Vec<Vec<u64>>,
-    /// Per layer, 2-D running sums of the faces to the next layer.
-    ahead: Vec<Vec<u64>>,
-    /// Per layer and plane across the slab axis (between `s` and `s + 1`),
-    /// running sums along the column axis.
-    across_slab: Vec<Vec<Vec<u64>>>,
-    /// Per layer and plane across the column axis, running sums along the
-    /// slab axis.
-    across_column: Vec<Vec<Vec<u64>>>,
+    /// What each layer's cubes and side faces cost, the layers innermost:
+    /// a rectangle's profile reads a run of layers at each of its corners
+    /// (the floor profiles 279 000 rectangles; a layer at a time, its reads
+    /// were scattered over every layer's table).
+    layers: Planes,
+    /// The layers' sums added up: what a whole row holds.
+    all: Planes,
+    /// Per layer, 2-D running sums of the faces to the next layer, as
+    /// [`Planes::cubes`].
+    ahead: Vec<u64>,
+}
+
+/// Running sums over the slab and column axes, `depth` values an entry:
+/// one a layer, or one for all the layers added up (every sum is linear in
+/// the costs).
+struct Planes {
+    depth: usize,
+    /// 2-D running sums of the cubes' costs: entry `c * (g[0] + 1) + s`,
+    /// one past each.
+    cubes: Vec<u64>,
+    /// Per plane across the slab axis (between `s` and `s + 1`), running
+    /// sums along the column axis: entry `s * (g[1] + 1) + c`.
+    across_slab: Vec<u64>,
+    /// Per plane across the column axis, running sums along the slab axis:
+    /// entry `c * (g[0] + 1) + s`.
+    across_column: Vec<u64>,
+}
+
+impl Planes {
+    /// Writes into `out` (`depth` long) what a row over rectangle `r` pays
+    /// at each depth: its cubes and the crossings of the row's side faces
+    /// inside the grid (`gs` and `gc` cubes across).
+    fn cost_into(&self, [gs, gc]: [usize; 2], r: [usize; 4], out: &mut [u64]) {
+        let [s0, s1, c0, c1] = r;
+        rectangle_into(&self.cubes, self.depth, gs + 1, r, out);
+        let mut along = |table: &[u64], lo: usize, hi: usize| {
+            let (lo, hi) = (&table[lo * self.depth..], &table[hi * self.depth..]);
+            for ((o, &h), &l) in out.iter_mut().zip(hi).zip(lo) {
+                *o += h - l;
+            }
+        };
+        let (slab, column) = (gc + 1, gs + 1);
+        if s0 > 0 {
+            along(&self.across_slab, (s0 - 1) * slab + c0, (s0 - 1) * slab + c1);
+        }
+        if s1 < gs {
+            along(&self.across_slab, (s1 - 1) * slab + c0, (s1 - 1) * slab + c1);
+        }
+        if c0 > 0 {
+            along(&self.across_column, (c0 - 1) * column + s0, (c0 - 1) * column + s1);
+        }
+        if c1 < gc {
+            along(&self.across_column, (c1 - 1) * column + s0, (c1 - 1) * column + s1);
+        }
+    }
+
+    /// The same sums with every entry's values added up.
+    fn added_up(&self) -> Self {
+        let add = |t: &[u64]| t.chunks(self.depth.max(1)).map(|c| c.iter().sum()).collect();
+        Self {
+            depth: 1,
+            cubes: add(&self.cubes),
+            across_slab: add(&self.across_slab),
+            across_column: add(&self.across_column),
+        }
+    }
 }
 
 impl LayerSums {
@@ -144,6 +199,7 @@ impl LayerSums {
         let [s, c] = [(d + 1) % 3, (d + 2) % 3];
         let grid = map.grid.map(usize::from);
         let g = [grid[s], grid[c], grid[d]];
+        let (w, gd) = (g[0] + 1, g[2]);
         let index = |is: usize, ic: usize, k: usize| {
             let mut cell = [0usize; 3];
             (cell[s], cell[c], cell[d]) = (is, ic, k);
@@ -152,37 +208,44 @@ impl LayerSums {
         let face = |axis: usize, at: usize, limit: usize, i: usize| {
             if at + 1 < limit { map.face(axis, i) } else { 0 }
         };
-        let plane = |f: &dyn Fn(usize, usize) -> u64| {
-            let w = g[0] + 1;
-            let mut p = vec![0u64; w * (g[1] + 1)];
+        // 2-D running sums, every layer's at once.
+        let plane = |f: &dyn Fn(usize, usize, usize) -> u64| {
+            let mut p = vec![0u64; w * (g[1] + 1) * gd];
             for ic in 0..g[1] {
                 for is in 0..g[0] {
-                    p[(ic + 1) * w + is + 1] =
-                        f(is, ic) + p[ic * w + is + 1] + p[(ic + 1) * w + is] - p[ic * w + is];
+                    for k in 0..gd {
+                        let at = |c: usize, s: usize| (c * w + s) * gd + k;
+                        p[at(ic + 1, is + 1)] =
+                            f(is, ic, k) + p[at(ic, is + 1)] + p[at(ic + 1, is)] - p[at(ic, is)];
+                    }
                 }
             }
             p
         };
-        let run = |len: usize, f: &dyn Fn(usize) -> u64| {
-            std::iter::once(0)
-                .chain((0..len).scan(0u64, |sum, i| {
-                    *sum += f(i);
-                    Some(*sum)
-                }))
-                .collect::<Vec<u64>>()
+        // Per plane `i` of `planes`, running sums of `len` faces, every layer's.
+        let runs = |planes: usize, len: usize, f: &dyn Fn(usize, usize, usize) -> u64| {
+            let mut r = vec![0u64; planes * (len + 1) * gd];
+            for i in 0..planes {
+                for j in 0..len {
+                    for k in 0..gd {
+                        let at = |j: usize| (i * (len + 1) + j) * gd + k;
+                        r[at(j + 1)] = r[at(j)] + f(i, j, k);
+                    }
+                }
+            }
+            r
         };
-        let layers = 0..g[2];
+        let layers = Planes {
+            depth: gd,
+            cubes: plane(&|is, ic, k| map.cell(index(is, ic, k))),
+            across_slab: runs(g[0], g[1], &|is, ic, k| face(s, is, g[0], index(is, ic, k))),
+            across_column: runs(g[1], g[0], &|ic, is, k| face(c, ic, g[1], index(is, ic, k))),
+        };
         Self {
             g,
-            cubes: layers.clone().map(|k| plane(&|is, ic| map.cell(index(is, ic, k)))).collect(),
-            ahead: layers.clone().map(|k| plane(&|is, ic| face(d, k, g[2], index(is, ic, k)))).collect(),
-            across_slab: layers
-                .clone()
-                .map(|k| (0..g[0]).map(|is| run(g[1], &|ic| face(s, is, g[0], index(is, ic, k)))).collect())
-                .collect(),
-            across_column: layers
-                .map(|k| (0..g[1]).map(|ic| run(g[0], &|is| face(c, ic, g[1], index(is, ic, k)))).collect())
-                .collect(),
+            all: layers.added_up(),
+            layers,
+            ahead: plane(&|is, ic, k| face(d, k, gd, index(is, ic, k))),
         }
     }
 
@@ -199,43 +262,36 @@ impl LayerSums {
     /// driving axis has planes, one more than its layers), for a caller that
     /// profiles many rectangles: the floor's table, 279 000 of them.
     pub(super) fn profile_into(&self, r: [usize; 4], prefix: &mut [u64], plane: &mut [u64]) {
-        let [gs, _, gd] = self.g;
-        (prefix[0], plane[0], plane[gd]) = (0, 0, 0);
-        for k in 0..gd {
-            prefix[k + 1] = prefix[k] + self.layer(k, r);
-            if k + 1 < gd {
-                plane[k + 1] = rectangle(&self.ahead[k], gs + 1, r);
-            }
+        let [gs, gc, gd] = self.g;
+        // Each layer's cost, then their running sum.
+        prefix[0] = 0;
+        self.layers.cost_into([gs, gc], r, &mut prefix[1..=gd]);
+        for k in 1..=gd {
+            prefix[k] += prefix[k - 1];
         }
+        // The faces ahead of the last layer leave the grid: none.
+        rectangle_into(&self.ahead, gd, gs + 1, r, &mut plane[1..=gd]);
+        (plane[0], plane[gd]) = (0, 0);
     }
 
-    /// What layer `k` of a row over rectangle `r` costs its holder: its cubes
-    /// and the crossings of the row's side faces inside the grid.
-    fn layer(&self, k: usize, r: [usize; 4]) -> u64 {
-        let [gs, gc, _] = self.g;
-        let [s0, s1, c0, c1] = r;
-        let mut sum = rectangle(&self.cubes[k], gs + 1, r);
-        let along = |run: &Vec<u64>, lo: usize, hi: usize| run[hi] - run[lo];
-        if s0 > 0 {
-            sum += along(&self.across_slab[k][s0 - 1], c0, c1);
-        }
-        if s1 < gs {
-            sum += along(&self.across_slab[k][s1 - 1], c0, c1);
-        }
-        if c0 > 0 {
-            sum += along(&self.across_column[k][c0 - 1], s0, s1);
-        }
-        if c1 < gc {
-            sum += along(&self.across_column[k][c1 - 1], s0, s1);
-        }
-        sum
+    /// What a row over rectangle `r` holds in all its layers: the last of
+    /// [`Self::profile`]'s prefix, in a few additions instead of a pass
+    /// over the layers.
+    pub(super) fn held(&self, r: [usize; 4]) -> u64 {
+        let mut held = [0];
+        self.all.cost_into([self.g[0], self.g[1]], r, &mut held);
+        held[0]
     }
 }
 
-/// The sum over rectangle `[s0, s1) x [c0, c1)` from 2-D running sums `p`
-/// of row width `w`.
-fn rectangle(p: &[u64], w: usize, [s0, s1, c0, c1]: [usize; 4]) -> u64 {
-    p[c1 * w + s1] + p[c0 * w + s0] - p[c0 * w + s1] - p[c1 * w + s0]
+/// Writes into `out` the sums over rectangle `[s0, s1) x [c0, c1)` from 2-D
+/// running sums `p` of row width `w`, `depth` values an entry.
+fn rectangle_into(p: &[u64], depth: usize, w: usize, [s0, s1, c0, c1]: [usize; 4], out: &mut [u64]) {
+    let at = |c: usize, s: usize| &p[(c * w + s) * depth..(c * w + s + 1) * depth];
+    let (a, b, c, d) = (at(c1, s1), at(c0, s0), at(c0, s1), at(c1, s0));
+    for (k, o) in out.iter_mut().enumerate() {
+        *o = a[k] + b[k] - c[k] - d[k];
+    }
 }
 
 #[cfg(test)]
