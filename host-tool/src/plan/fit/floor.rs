@@ -150,11 +150,16 @@ pub fn least_busiest_cost(prefix: &[u64], plane: &[u64], parts: usize, cap: u64)
         let ends = if p == parts { len..=len } else { p..=len - (parts - p) };
         for j in ends {
             let mut best = cap.saturating_add(1);
-            for i in (p - 1..j).rev() {
-                if prefix[j] - prefix[i] >= best {
+            let (layers_to_j, plane_j) = (prefix[j], plane[j]);
+            // The starts from the nearest, their layers, planes and best
+            // cuts before them side by side: this loop is most of the floor.
+            let starts = prefix[p - 1..j].iter().zip(&plane[p - 1..j]).zip(&last[p - 1..j]);
+            for ((&layers_to_i, &plane_i), &before) in starts.rev() {
+                let layers = layers_to_j - layers_to_i;
+                if layers >= best {
                     break;
                 }
-                best = best.min(last[i].max(cost(i, j)));
+                best = best.min(before.max(layers + plane_i + plane_j));
             }
             next[j] = best;
         }
