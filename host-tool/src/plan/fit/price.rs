@@ -22,10 +22,9 @@ type Cubes = ([usize; 3], [usize; 3]);
 /// The rays leaving one face of a node's box, routed together: where what
 /// they charge a hop is kept.
 struct Crossing<'a> {
-    /// The cycles they charge: [`CostMap::up`] or [`CostMap::down`] along `axis`.
-    cycles: &'a BoxSums,
-    /// The bytes they put on the wire, where the wires are priced.
-    bytes: Option<&'a BoxSums>,
+    /// The cycles they charge ([`CostMap::up`] or [`CostMap::down`] along
+    /// `axis`) and the bytes they put on the wire.
+    sums: &'a BoxSums,
     axis: usize,
     /// The charges are kept at the cube below the face: for rays leaving
     /// upward, a cube before the one they are bound for.
@@ -40,7 +39,8 @@ impl Crossing<'_> {
             lo[self.axis] -= 1;
             hi[self.axis] -= 1;
         }
-        (self.cycles.sum(lo, hi), self.bytes.map_or(0, |b| b.sum(lo, hi)))
+        let [cycles, bytes] = self.sums.sum(lo, hi);
+        (cycles, bytes)
     }
 }
 
@@ -147,19 +147,18 @@ impl Partition {
         limit: u64,
     ) -> Option<(Vec<u64>, Option<Vec<u64>>)> {
         let routes = Routes::new(self);
-        let wire = sums.wire.as_ref();
-        let mut cpu = routes.cubes(&sums.cells);
-        let host =
-            wire.map(|w| routes.cubes(&w.host).into_iter().map(|b| b * w.cycles.host).collect::<Vec<_>>());
+        let wire = sums.wire;
+        let cells = routes.cubes(&sums.cells);
+        let mut cpu: Vec<u64> = cells.iter().map(|c| c[0]).collect();
+        let host = wire.map(|w| cells.iter().map(|c| c[1] * w.host).collect::<Vec<_>>());
         if cpu.iter().chain(host.iter().flatten()).any(|&t| t > limit) {
             return None;
         }
         // A port's bytes past this take its wire past `limit`.
-        let byte_limit = wire.map_or(u64::MAX, |w| limit.checked_div(w.cycles.neighbour).unwrap_or(u64::MAX));
+        let byte_limit = wire.map_or(u64::MAX, |w| limit.checked_div(w.neighbour).unwrap_or(u64::MAX));
         // Per node and port (axis, upward): bytes sent and bytes received.
         let mut sent = vec![[0u64; 6]; routes.boxes.len()];
         let mut received = sent.clone();
-        let bytes = wire.map(|w| [&w.up, &w.down]);
         let mut sink = |at: usize, next: usize, axis: usize, (price, bytes): (u64, u64)| {
             cpu[at] += price;
             cpu[next] += price;
@@ -171,7 +170,7 @@ impl Partition {
             let past = cpu[at] > limit || cpu[next] > limit || *out > byte_limit || *back > byte_limit;
             if past { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
         };
-        if routes.every_face(grid, [&sums.up, &sums.down], bytes, &mut sink).is_break() {
+        if routes.every_face(grid, [&sums.up, &sums.down], &mut sink).is_break() {
             return None;
         }
         let wires = wire.zip(host).map(|(wire, host)| {
@@ -180,7 +179,7 @@ impl Partition {
             sent.iter()
                 .zip(&received)
                 .zip(host)
-                .map(|(ports, host)| (busiest(ports).unwrap_or(0) * wire.cycles.neighbour).max(host))
+                .map(|(ports, host)| (busiest(ports).unwrap_or(0) * wire.neighbour).max(host))
                 .collect()
         });
         Some((cpu, wires))
@@ -205,36 +204,25 @@ impl Routes {
         Self { boxes, order: [(d + 1) % 3, (d + 2) % 3, d], stride: [1, x, x * y] }
     }
 
-    /// What each node's cubes cost.
-    fn cubes(&self, cells: &BoxSums) -> Vec<u64> {
+    /// What each node's cubes cost, and the bytes they send the host.
+    fn cubes(&self, cells: &BoxSums) -> Vec<[u64; 2]> {
         self.boxes.iter().map(|&(lo, hi)| cells.sum(lo, hi)).collect()
     }
 
     /// Sends the rays leaving every face of every box inside the grid on
-    /// their way: `cycles` what they charge crossing upward and downward
-    /// per axis, `bytes` what they put on the wire, if the wires are priced.
+    /// their way: `faces` what they charge crossing upward and downward
+    /// per axis, and the bytes they put on the wire.
     ///
     /// `sink` takes each hop: the node it leaves, the node it reaches, the
     /// axis it crosses, and what the rays charge there and their bytes.
-    fn every_face<F>(
-        &self,
-        grid: [u16; 3],
-        cycles: Faces<'_>,
-        bytes: Option<Faces<'_>>,
-        sink: &mut F,
-    ) -> ControlFlow<()>
+    fn every_face<F>(&self, grid: [u16; 3], faces: Faces<'_>, sink: &mut F) -> ControlFlow<()>
     where
         F: FnMut(usize, usize, usize, (u64, u64)) -> ControlFlow<()>,
     {
         let grid = grid.map(usize::from);
         for (id, &(lo, hi)) in self.boxes.iter().enumerate() {
             for axis in 0..3 {
-                let crossing = |way: usize, upward| Crossing {
-                    cycles: &cycles[way][axis],
-                    bytes: bytes.map(|b| &b[way][axis]),
-                    axis,
-                    upward,
-                };
+                let crossing = |way: usize, upward| Crossing { sums: &faces[way][axis], axis, upward };
                 if hi[axis] < grid[axis] {
                     let mut beyond = (lo, hi);
                     (beyond.0[axis], beyond.1[axis]) = (hi[axis], hi[axis] + 1);

@@ -11,36 +11,42 @@ use crate::plan::cost_map::{CostMap, WireCycles};
 #[cfg(doc)]
 use crate::plan::partition::Partition;
 
-/// Running sums of one value per cube over every box from the grid's origin:
-/// `at[(x, y, z)]` is the sum over the cubes below `x`, `y` and `z`.
+/// Running sums of two values per cube over every box from the grid's
+/// origin: `at[(x, y, z)]` is the sum over the cubes below `x`, `y` and `z`.
+/// Two, because the fit prices each box twice over, in cycles and in bytes:
+/// side by side, one box's eight corners are read once for both.
 #[derive(Debug, Clone)]
 pub struct BoxSums {
     /// Cubes per axis, plus one.
     side: [usize; 3],
-    at: Vec<u64>,
+    at: Vec<[u64; 2]>,
 }
 
 impl BoxSums {
-    /// The running sums of `values` (x fastest) over a grid of `grid` cubes.
-    pub fn new(grid: [u16; 3], values: &[u64]) -> Self {
+    /// The running sums of `first` and `second` (each x fastest; `second`
+    /// zero where it is empty) over a grid of `grid` cubes.
+    pub fn new(grid: [u16; 3], first: &[u64], second: &[u64]) -> Self {
         let n = grid.map(usize::from);
         let side = n.map(|k| k + 1);
-        let mut at = vec![0u64; side.iter().product()];
+        let mut at = vec![[0u64; 2]; side.iter().product()];
         let index = |x: usize, y: usize, z: usize| x + side[0] * (y + side[1] * z);
         for z in 0..n[2] {
             for y in 0..n[1] {
                 for x in 0..n[0] {
-                    let v = values[x + n[0] * (y + n[1] * z)];
-                    // Inclusion-exclusion; wrapping, because a partial sum of
-                    // the terms may dip below zero although the result cannot.
-                    let s = v
-                        .wrapping_add(at[index(x, y + 1, z + 1)])
-                        .wrapping_add(at[index(x + 1, y, z + 1)])
-                        .wrapping_add(at[index(x + 1, y + 1, z)])
-                        .wrapping_sub(at[index(x, y, z + 1)])
-                        .wrapping_sub(at[index(x, y + 1, z)])
-                        .wrapping_sub(at[index(x + 1, y, z)])
-                        .wrapping_add(at[index(x, y, z)]);
+                    let i = x + n[0] * (y + n[1] * z);
+                    let v = [first[i], second.get(i).copied().unwrap_or(0)];
+                    let s = std::array::from_fn(|k| {
+                        // Inclusion-exclusion; wrapping, because a partial sum
+                        // of the terms may dip below zero although the result
+                        // cannot.
+                        v[k].wrapping_add(at[index(x, y + 1, z + 1)][k])
+                            .wrapping_add(at[index(x + 1, y, z + 1)][k])
+                            .wrapping_add(at[index(x + 1, y + 1, z)][k])
+                            .wrapping_sub(at[index(x, y, z + 1)][k])
+                            .wrapping_sub(at[index(x, y + 1, z)][k])
+                            .wrapping_sub(at[index(x + 1, y, z)][k])
+                            .wrapping_add(at[index(x, y, z)][k])
+                    });
                     at[index(x + 1, y + 1, z + 1)] = s;
                 }
             }
@@ -48,69 +54,57 @@ impl BoxSums {
         Self { side, at }
     }
 
-    fn get(&self, [x, y, z]: [usize; 3]) -> u64 {
-        self.at[x + self.side[0] * (y + self.side[1] * z)]
-    }
-
-    /// The sum over the cubes `lo <= c < hi` (empty if any `hi <= lo`).
-    pub fn sum(&self, lo: [usize; 3], hi: [usize; 3]) -> u64 {
+    /// The sums over the cubes `lo <= c < hi` (empty if any `hi <= lo`).
+    pub fn sum(&self, lo: [usize; 3], hi: [usize; 3]) -> [u64; 2] {
         if (0..3).any(|a| hi[a] <= lo[a]) {
-            return 0;
+            return [0; 2];
         }
-        let corner = |pick: [bool; 3]| self.get(std::array::from_fn(|a| if pick[a] { hi[a] } else { lo[a] }));
-        corner([true, true, true])
-            .wrapping_sub(corner([false, true, true]))
-            .wrapping_sub(corner([true, false, true]))
-            .wrapping_sub(corner([true, true, false]))
-            .wrapping_add(corner([false, false, true]))
-            .wrapping_add(corner([false, true, false]))
-            .wrapping_add(corner([true, false, false]))
-            .wrapping_sub(corner([false, false, false]))
+        let (sy, sz) = (self.side[0], self.side[0] * self.side[1]);
+        let (x, y, z) = ([lo[0], hi[0]], [lo[1] * sy, hi[1] * sy], [lo[2] * sz, hi[2] * sz]);
+        let at = |i: usize, j: usize, k: usize| self.at[x[i] + y[j] + z[k]];
+        let ([a, b, c, d], [e, f, g, h]) = (
+            [at(1, 1, 1), at(0, 0, 1), at(0, 1, 0), at(1, 0, 0)],
+            [at(0, 1, 1), at(1, 0, 1), at(1, 1, 0), at(0, 0, 0)],
+        );
+        std::array::from_fn(|k| {
+            a[k].wrapping_add(b[k])
+                .wrapping_add(c[k])
+                .wrapping_add(d[k])
+                .wrapping_sub(e[k])
+                .wrapping_sub(f[k])
+                .wrapping_sub(g[k])
+                .wrapping_sub(h[k])
+        })
     }
 }
 
-/// The running sums of everything a [`CostMap`] charges.
+/// The running sums of everything a [`CostMap`] charges, each beside the
+/// bytes it puts on a wire ([`crate::plan::cost_map::WireMap`]).
 #[derive(Debug, Clone)]
 pub struct MapSums {
-    /// Per cube: [`CostMap::cell`].
+    /// Per cube: [`CostMap::cell`], and the bytes to the host.
     pub cells: BoxSums,
-    /// Per axis: [`CostMap::up`].
+    /// Per axis: [`CostMap::up`], and the bytes crossing upward.
     pub up: [BoxSums; 3],
-    /// Per axis: [`CostMap::down`].
+    /// Per axis: [`CostMap::down`], and the bytes crossing downward.
     pub down: [BoxSums; 3],
-    /// The wires' bytes, where they are priced.
-    pub wire: Option<WireSums>,
-}
-
-/// The running sums of a [`crate::plan::cost_map::WireMap`]'s bytes.
-#[derive(Debug, Clone)]
-pub struct WireSums {
-    /// Per cube: bytes to the host.
-    pub host: BoxSums,
-    /// Per axis: bytes crossing upward.
-    pub up: [BoxSums; 3],
-    /// Per axis: bytes crossing downward.
-    pub down: [BoxSums; 3],
-    /// What a byte takes on each wire.
-    pub cycles: WireCycles,
+    /// What a byte takes on each wire, where the wires are priced (else
+    /// the bytes are left out: zero).
+    pub wire: Option<WireCycles>,
 }
 
 impl MapSums {
     /// The sums of `map`.
     pub fn new(map: &CostMap) -> Self {
         let g = map.grid;
-        let sums = |v: &[u64]| BoxSums::new(g, v);
         let w = &map.wire;
-        let wire = w.cycles.priced().then(|| WireSums {
-            host: sums(&w.host),
-            up: std::array::from_fn(|a| sums(&w.up[a])),
-            down: std::array::from_fn(|a| sums(&w.down[a])),
-            cycles: w.cycles,
-        });
+        let wire = w.cycles.priced().then_some(w.cycles);
+        let bytes = |v: &'_ [u64]| if wire.is_some() { v.to_vec() } else { Vec::new() };
+        let sums = |v: &[u64], b: &[u64]| BoxSums::new(g, v, &bytes(b));
         Self {
-            cells: sums(&map.cells()),
-            up: std::array::from_fn(|a| sums(&map.up[a])),
-            down: std::array::from_fn(|a| sums(&map.down[a])),
+            cells: sums(&map.cells(), &w.host),
+            up: std::array::from_fn(|a| sums(&map.up[a], &w.up[a])),
+            down: std::array::from_fn(|a| sums(&map.down[a], &w.down[a])),
             wire,
         }
     }
@@ -322,7 +316,9 @@ mod tests {
                     }
                 }
             }
-            prop_assert_eq!(BoxSums::new(grid, &values).sum(lo, hi), walked);
+            let doubled: Vec<u64> = values.iter().map(|v| v * 2).collect();
+            prop_assert_eq!(BoxSums::new(grid, &values, &doubled).sum(lo, hi), [walked, 2 * walked]);
+            prop_assert_eq!(BoxSums::new(grid, &values, &[]).sum(lo, hi), [walked, 0]);
         }
     }
 }
