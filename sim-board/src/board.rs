@@ -156,6 +156,10 @@ pub struct Board {
     host_rng: Vec<FaultRng>,
     /// Arrival time of the latest node-to-host message.
     last_to_host: u64,
+    /// The host's time: when its last run ended. What it sends after a run
+    /// leaves no earlier, though a node idle since before still holds the
+    /// time it went idle.
+    host_clock: u64,
     /// What nodes sent the host, by arrival time (then node, then order of
     /// sending): handed over once the board's time reaches it, so the host
     /// sees messages in the order they arrive even when a slow host link
@@ -218,6 +222,7 @@ impl Board {
             neighbours,
             rounds: 0,
             last_to_host: 0,
+            host_clock: 0,
             to_host: BTreeMap::new(),
             to_host_seq: 0,
             to_host_held: vec![0; count],
@@ -268,14 +273,16 @@ impl Board {
         self.slots[i].busy
     }
 
-    /// Queues a host-to-node message; it arrives at the node's current time.
+    /// Queues a host-to-node message; it arrives at the node's current
+    /// time, or when the host's last run ended if the node has been idle
+    /// since before: the host sends it no earlier.
     pub fn send(&mut self, node: usize, msg: Message) {
         if let Some(backlog) = self.host_backlog.get_mut(node) {
             backlog.push_back(msg);
             return;
         }
         let slot = &mut self.slots[node];
-        let at = slot.clock;
+        let at = slot.clock.max(self.host_clock);
         let len = crate::sim_links::frame_len(&msg) as u64;
         slot.ports[Port::Host.index()].inbox.push_back(Stamped {
             at,
@@ -289,7 +296,10 @@ impl Board {
     /// Runs until the host is finished; fails on a stall or a miswired send.
     pub fn run(&mut self, host: &mut impl HostEndpoint) -> Result<RunStats, SimError> {
         let lookahead = self.config.link.latency.min(self.config.host_link.latency).max(1);
-        let mut now = self.slots.iter().map(|s| s.clock).min().unwrap_or(0);
+        // The run starts when the host sends its first message: no earlier
+        // than its last run ended (idle nodes' clocks stay where they went
+        // idle), nor than every node's clock.
+        let mut now = self.slots.iter().map(|s| s.clock).min().unwrap_or(0).max(self.host_clock);
         let start = now;
         while !host.finished() {
             let host_busy = self.host_channels.iter().any(Channel::busy)
@@ -329,6 +339,7 @@ impl Board {
             }
             now = end;
         }
+        self.host_clock = now;
         Ok(RunStats { start, end: now, rounds: self.rounds })
     }
 

@@ -7,6 +7,7 @@ use host_tool::plan::initial_partition;
 use host_tool::plan::options::{Layout, PROPORTIONAL, RenderOptions};
 use host_tool::results::RenderResult;
 use host_tool::results::history::after_slides;
+use host_tool::results::sequence::FrameRow;
 use host_tool::scene::Scene;
 use host_tool::scene::path::{CameraPath, SphereKeyframe};
 use host_tool::session::clock::Cycles;
@@ -229,5 +230,34 @@ fn a_frame_after_a_reload_keeps_its_neighbours_grants() {
         let (m_still, m_nudged) = (messages(a), messages(b));
         eprintln!("frame {}: {m_still} messages still, {m_nudged} reloaded", a.number);
         assert!(m_nudged * 100 <= m_still * 102, "frame {}: {m_nudged} messages against {m_still}", a.number);
+    }
+}
+
+/// A still camera on static even boxes renders the same frame again and
+/// again, on nodes left as the frame before left them: after the first
+/// (which also loads the scene), every frame takes the same virtual time,
+/// and none longer than the first. Each frame starts when the host sends its
+/// start, after the frame before has ended everywhere; on the in-memory
+/// board a node idle since early in the last frame once took the start at
+/// the time it went idle, and the frame's span began there (frames after
+/// the first 3.5% longer on 4x4x4).
+#[test]
+fn a_still_cameras_frames_take_the_same_time() {
+    let s = scene();
+    let opts = options([4, 4, 4], None, Layout::Even);
+    let sequence =
+        Sequence { frames: 4, path: CameraPath::Orbit { degrees: 0.0 }, start: FrameStart::Carried };
+    let frames = run(&s, &opts, &sequence);
+    let makespan = |f: &SequenceFrame<Cycles>| FrameRow::of(f).makespan;
+    let first = makespan(&frames[0]);
+    for f in &frames[1..] {
+        assert!(!f.loaded, "frame {} sent the scene again", f.number);
+        assert_eq!(makespan(f), makespan(&frames[1]), "frame {}", f.number);
+        assert!(
+            makespan(f) <= first,
+            "frame {}: {} cycles against the first's {first}",
+            f.number,
+            makespan(f)
+        );
     }
 }
