@@ -160,6 +160,10 @@ pub struct Board {
     /// leaves no earlier, though a node idle since before still holds the
     /// time it went idle.
     host_clock: u64,
+    /// Per node, when the host's wire to it is free: what the host sends a
+    /// node crosses that wire a byte at a time, as a node's messages to the
+    /// host cross the wire back.
+    host_wire: Vec<u64>,
     /// What nodes sent the host, by arrival time (then node, then order of
     /// sending): handed over once the board's time reaches it, so the host
     /// sees messages in the order they arrive even when a slow host link
@@ -223,6 +227,7 @@ impl Board {
             rounds: 0,
             last_to_host: 0,
             host_clock: 0,
+            host_wire: vec![0; count],
             to_host: BTreeMap::new(),
             to_host_seq: 0,
             to_host_held: vec![0; count],
@@ -273,17 +278,21 @@ impl Board {
         self.slots[i].busy
     }
 
-    /// Queues a host-to-node message; it arrives at the node's current
-    /// time, or when the host's last run ended if the node has been idle
-    /// since before: the host sends it no earlier.
+    /// Queues a host-to-node message. It leaves at the node's current time,
+    /// or when the host's last run ended if the node has been idle since
+    /// before (the host sends it no earlier), once the wire to the node is
+    /// free, and arrives when its last byte has crossed.
     pub fn send(&mut self, node: usize, msg: Message) {
         if let Some(backlog) = self.host_backlog.get_mut(node) {
             backlog.push_back(msg);
             return;
         }
         let slot = &mut self.slots[node];
-        let at = slot.clock.max(self.host_clock);
         let len = crate::sim_links::frame_len(&msg) as u64;
+        let model = self.config.host_link.model();
+        let wire = &mut self.host_wire[node];
+        *wire = slot.clock.max(self.host_clock).max(*wire) + len * model.byte;
+        let at = *wire + model.latency;
         slot.ports[Port::Host.index()].inbox.push_back(Stamped {
             at,
             msg,
@@ -505,7 +514,7 @@ impl Board {
             }
         }
         self.hand_to_host(host, now);
-        let latency = self.config.host_link.latency;
+        let model = self.config.host_link.model();
         for node in 0..self.host_channels.len() {
             let channel = &mut self.host_channels[node];
             while channel.can_send() {
@@ -517,9 +526,12 @@ impl Board {
             }
             let (rng, wire) =
                 (&mut self.host_rng[node], &mut self.slots[node].ports[Port::Host.index()].wire);
+            let free = &mut self.host_wire[node];
             channel.transmit(now, |bytes| {
                 let fate = rng.fate(&faults, bytes);
-                let at = now + latency * if fate.delayed { 5 } else { 1 };
+                // A frame crosses the wire a byte at a time, after those before it.
+                *free = now.max(*free) + bytes.len() as u64 * model.byte;
+                let at = *free + model.latency * if fate.delayed { 5 } else { 1 };
                 for _ in 0..fate.copies {
                     arrive(wire, at, fate.bytes.clone());
                 }
