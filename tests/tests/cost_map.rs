@@ -130,7 +130,8 @@ fn the_cost_map_accounts_for_initial_rays_seen_at_an_angle() {
 /// On slow links the wires, not the CPUs, bound a frame. Fitted to the CPU
 /// alone, the preview cut 4x4x4 into boxes slower than even ones here
 /// (3.10e7 cycles against 2.54e7 at 1 Mbaud, 2.67e8 against 2.33e8 at
-/// 115 200 baud). The fit prices each node's busiest wire as well, and
+/// 115 200 baud, measured before the host's sends took their wire time,
+/// which adds each node's load to both). The fit prices each node's busiest wire as well, and
 /// keeps even boxes where its prices put them ahead.
 #[test]
 fn on_slow_links_the_preview_fit_never_loses_to_even_boxes() {
