@@ -467,12 +467,13 @@ fn link_presets_change_time_not_the_image() {
             // send the final report, and the end of the frame to and from each
             // of a 2x2x2 node's three neighbours, and whatever else is still
             // due; and what the node takes before its frame starts: the
-            // scene and the hellos, as `direct::fixed_cost` counts them, and
+            // scene and the hellos ([`direct::fixed_messages`]), and
             // the pieces of the occupancy map. The report cannot count them
             // (short messages of under 64 bytes). A poll is charged at least
             // one cycle.
             let cost = sim_board::CostModel::default();
-            let before = r.partition.spheres_sent(id, &s) + s.lights.len() + 6 + 7 * 3 + occupancy;
+            let p = &r.partition;
+            let before = direct::fixed_messages(p.spheres_sent(id, &s), p.neighbours(id), &s) + occupancy;
             let messages = (4 + 2 * 3 + before) as u64;
             let (byte_cpu, frame_cpu) = opts_cpu(preset, transfer);
             let outside = messages * (cost.short_message + 64 * byte_cpu + frame_cpu);

@@ -196,14 +196,19 @@ impl Creators {
     }
 }
 
-/// What a node pays beside its cells' work, in short messages: one per
-/// sphere it is sent (one node is sent all; on an array each node only those
-/// that meet its box, [`Partition::spheres_sent`](crate::plan::partition::Partition::spheres_sent))
+/// What a node pays beside its cells' work: [`fixed_messages`] short messages.
+pub fn fixed_cost(spheres: usize, neighbours: usize, scene: &Scene, cost: &sim_board::CostModel) -> u64 {
+    fixed_messages(spheres, neighbours, scene) as u64 * cost.short_message
+}
+
+/// The short messages a node handles beside its cells' work: one per sphere
+/// it is sent (one node is sent all; on an array each node only those that
+/// meet its box, [`Partition::spheres_sent`](crate::plan::partition::Partition::spheres_sent))
 /// and per light, six to begin and end the scene and the frame with the
 /// host, and seven per neighbour (hellos both ways and the host's note of
 /// who answered, the first grants both ways, the frame's end both ways).
-pub fn fixed_cost(spheres: usize, neighbours: usize, scene: &Scene, cost: &sim_board::CostModel) -> u64 {
-    (spheres + scene.lights.len() + 6 + 7 * neighbours) as u64 * cost.short_message
+pub fn fixed_messages(spheres: usize, neighbours: usize, scene: &Scene) -> usize {
+    spheres + scene.lights.len() + 6 + 7 * neighbours
 }
 
 /// What each side of a hop pays: the ray on a grant, a share of the `Grant`

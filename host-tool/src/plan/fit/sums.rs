@@ -99,8 +99,7 @@ impl MapSums {
         let g = map.grid;
         let w = &map.wire;
         let wire = w.cycles.priced().then_some(w.cycles);
-        let bytes = |v: &'_ [u64]| if wire.is_some() { v.to_vec() } else { Vec::new() };
-        let sums = |v: &[u64], b: &[u64]| BoxSums::new(g, v, &bytes(b));
+        let sums = |v: &[u64], b: &[u64]| BoxSums::new(g, v, if wire.is_some() { b } else { &[] });
         Self {
             cells: sums(&map.cells(), &w.host),
             up: std::array::from_fn(|a| sums(&map.up[a], &w.up[a])),
