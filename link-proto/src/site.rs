@@ -64,11 +64,14 @@ pub enum Site {
     CreditTooSmall,
     /// A map of occupied cubes outside the scene's loading.
     OccupancyOutOfPhase,
+    /// A scene that keeps a map of occupied cubes the node does not hold
+    /// (none, or one of another grid).
+    KeptMapNotHeld,
 }
 
 impl Site {
     /// Every site, in wire order.
-    pub const ALL: [Site; 27] = [
+    pub const ALL: [Site; 28] = [
         Site::ControlQueueFull,
         Site::SlideMessage,
         Site::OfferDuringSlide,
@@ -96,6 +99,7 @@ impl Site {
         Site::ShadeWithoutSurface,
         Site::CreditTooSmall,
         Site::OccupancyOutOfPhase,
+        Site::KeptMapNotHeld,
     ];
 
     /// The site a report's `b` names.

@@ -98,12 +98,13 @@ fn arb_message() -> impl Strategy<Value = Message> {
                 })
             }
         ),
-        (any::<[u16; 3]>(), any::<[u16; 3]>(), any::<[u16; 3]>(), any::<u8>()).prop_map(
-            |(grid, ambient, background, max_depth)| Message::SceneBegin(SceneHeader {
+        (any::<[u16; 3]>(), any::<[u16; 3]>(), any::<[u16; 3]>(), any::<u8>(), any::<bool>()).prop_map(
+            |(grid, ambient, background, max_depth, kept)| Message::SceneBegin(SceneHeader {
                 grid,
                 ambient,
                 background,
-                max_depth
+                max_depth,
+                map: if kept { link_proto::MapLoad::Kept } else { link_proto::MapLoad::Sent },
             })
         ),
         (any::<u16>(), any::<[i32; 3]>(), any::<i32>(), arb_material()).prop_map(

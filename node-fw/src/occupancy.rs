@@ -37,10 +37,14 @@ pub struct Occupancy<const W: usize> {
     shift: u32,
     /// Blocks along each axis.
     blocks: [u32; 3],
+    /// The grid's size in cubes, as [`Occupancy::begin`] was given it.
+    size: [u16; 3],
     /// Messages taken since the scene began.
     taken: u32,
     /// Complete, and so in use.
     ready: bool,
+    /// Kept from the last scene: no message may change it.
+    kept: bool,
 }
 
 impl<const W: usize> Default for Occupancy<W> {
@@ -52,7 +56,7 @@ impl<const W: usize> Default for Occupancy<W> {
 impl<const W: usize> Occupancy<W> {
     /// An empty map, not in use.
     pub const fn new() -> Self {
-        Self { words: [0; W], shift: 0, blocks: [0; 3], taken: 0, ready: false }
+        Self { words: [0; W], shift: 0, blocks: [0; 3], size: [0; 3], taken: 0, ready: false, kept: false }
     }
 
     /// A new scene's map of `grid`: nothing marked, not in use until
@@ -64,14 +68,24 @@ impl<const W: usize> Occupancy<W> {
             shift += 1;
         }
         self.clear();
-        (self.shift, self.blocks) = (shift, blocks_of(size, shift));
+        (self.shift, self.blocks, self.size) = (shift, blocks_of(size, shift), grid.size());
+    }
+
+    /// A new scene over `grid` that keeps this map ([`link_proto::MapLoad::Kept`]):
+    /// an error unless the map is complete and of the same grid.
+    pub fn keep(&mut self, grid: &Grid) -> Result<(), Error> {
+        if !self.ready || self.size != grid.size() {
+            return Err(Error::OutOfRange(Field::Occupancy));
+        }
+        (self.taken, self.kept) = (0, true);
+        Ok(())
     }
 
     /// Marks the cubes `m` marks; a message outside `grid` is an error.
     pub fn take(&mut self, m: &OccupancyMsg, grid: &Grid) -> Result<(), Error> {
         let [gx, gy, gz] = grid.size().map(u32::from);
         let cubes = gx * gy * gz;
-        if !m.first.is_multiple_of(CUBES_PER_OCCUPANCY) || m.first >= cubes {
+        if self.kept || !m.first.is_multiple_of(CUBES_PER_OCCUPANCY) || m.first >= cubes {
             return Err(Error::OutOfRange(Field::Occupancy));
         }
         for (i, byte) in (0u32..).zip(m.bits) {
@@ -88,12 +102,13 @@ impl<const W: usize> Occupancy<W> {
     }
 
     /// The scene is complete: the map is in use if `sent` messages made it
-    /// and some came (the host sends none when it has no map to give).
+    /// and some came (the host sends none when it has no map to give), or
+    /// if it was kept and none came.
     pub fn finish(&mut self, sent: u16) -> Result<(), Error> {
         if self.taken != u32::from(sent) {
             return Err(Error::OutOfRange(Field::Occupancy));
         }
-        self.ready = sent > 0;
+        self.ready = sent > 0 || self.kept;
         Ok(())
     }
 
@@ -101,7 +116,8 @@ impl<const W: usize> Occupancy<W> {
     /// known beyond the node's box.
     pub fn clear(&mut self) {
         self.words.iter_mut().for_each(|w| *w = 0);
-        (self.shift, self.blocks, self.taken, self.ready) = (0, [0; 3], 0, false);
+        (self.shift, self.blocks, self.size, self.taken, self.ready, self.kept) =
+            (0, [0; 3], [0; 3], 0, false, false);
     }
 
     /// Whether the map is in use.
@@ -224,6 +240,37 @@ mod tests {
         assert!(!map.is_clear([-1, 0, 0]) && !map.is_clear([8, 0, 0]), "outside the grid is never clear");
         map.clear();
         assert!(!map.is_clear([0, 0, 0]));
+    }
+
+    #[test]
+    fn a_kept_map_stays_as_it_was_and_takes_no_message() {
+        let grid = Grid::new([8, 8, 8]).unwrap();
+        let mut map = Occupancy::<16>::new();
+        assert_eq!(map.keep(&grid), Err(Error::OutOfRange(Field::Occupancy)), "no map to keep");
+        map.begin(&grid);
+        map.take(&msg(0, &[1]), &grid).unwrap();
+        assert_eq!(map.keep(&grid), Err(Error::OutOfRange(Field::Occupancy)), "an incomplete map");
+        map.begin(&grid);
+        map.take(&msg(0, &[1]), &grid).unwrap();
+        map.take(&msg(256, &[]), &grid).unwrap();
+        map.finish(2).unwrap();
+        let other = Grid::new([8, 8, 4]).unwrap();
+        assert_eq!(map.keep(&other), Err(Error::OutOfRange(Field::Occupancy)), "another grid");
+        map.keep(&grid).unwrap();
+        assert_eq!(map.take(&msg(0, &[]), &grid), Err(Error::OutOfRange(Field::Occupancy)));
+        map.keep(&grid).unwrap();
+        assert_eq!(map.finish(1), Err(Error::OutOfRange(Field::Occupancy)), "a message where none may come");
+        map.keep(&grid).unwrap();
+        map.finish(0).unwrap();
+        assert!(map.is_clear([0, 0, 0]) && !map.is_clear([1, 0, 0]), "the map is the one kept");
+        // Kept again, and then a scene that brings its own.
+        map.keep(&grid).unwrap();
+        map.finish(0).unwrap();
+        map.begin(&grid);
+        map.take(&msg(0, &[0]), &grid).unwrap();
+        map.take(&msg(256, &[]), &grid).unwrap();
+        map.finish(2).unwrap();
+        assert!(!map.is_clear([0, 0, 0]) && map.is_clear([1, 0, 0]), "a sent map replaces it");
     }
 
     #[test]

@@ -269,7 +269,13 @@ mod tests {
     #[test]
     fn a_light_is_beyond_the_grid_from_one_cube_out() {
         let Ok(grid) = Grid::new([8, 6, 4]) else { panic!("a valid grid") };
-        let header = SceneHeader { grid: [8, 6, 4], ambient: [0; 3], background: [0; 3], max_depth: 1 };
+        let header = SceneHeader {
+            grid: [8, 6, 4],
+            ambient: [0; 3],
+            background: [0; 3],
+            max_depth: 1,
+            map: link_proto::MapLoad::Sent,
+        };
         let scene = Scene { header: &header, grid: &grid, lights: &[] };
         let at = |p: [f64; 3]| p.map(|x| (x * ONE as f64) as i32);
         for far in [[-1.0, 3.0, 2.0], [9.0, 3.0, 2.0], [4.0, 7.0, 2.0], [4.0, -1.5, 2.0], [4.0, 3.0, 5.0]] {

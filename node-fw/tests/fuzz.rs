@@ -119,11 +119,12 @@ fn arb_message() -> impl Strategy<Value = Message> {
     let camera = proptest::array::uniform4(proptest::array::uniform3(small_i32()))
         .prop_map(|[eye, corner, du, dv]| CameraMsg { eye, corner, du, dv });
     prop_oneof![
-        3 => (proptest::array::uniform3(0u16..20), any::<u8>()).prop_map(|(grid, max_depth)| Message::SceneBegin(SceneHeader {
+        3 => (proptest::array::uniform3(0u16..20), any::<u8>(), any::<bool>()).prop_map(|(grid, max_depth, kept)| Message::SceneBegin(SceneHeader {
             grid,
             ambient: [8000; 3],
             background: [1000; 3],
             max_depth: max_depth % 6,
+            map: if kept { link_proto::MapLoad::Kept } else { link_proto::MapLoad::Sent },
         })),
         3 => (proptest::array::uniform3(0u16..4), proptest::array::uniform3(0u16..20), proptest::array::uniform3(0u16..20), 0u8..4)
             .prop_map(|(array, lo, hi, driving_axis)| Message::Assign(Assign {
@@ -269,6 +270,7 @@ fn valid_setup(spheres: &[SphereMsg]) -> Vec<(Port, Message)> {
                 ambient: [8000; 3],
                 background: [500; 3],
                 max_depth: 2,
+                map: link_proto::MapLoad::Sent,
             }),
         ),
         (

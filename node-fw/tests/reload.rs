@@ -65,3 +65,33 @@ fn grants_given_before_the_scene_is_sent_again_stand() {
     let (granted, plain) = rays_east(&wires);
     assert_eq!(granted, 4, "the four grants are used ({plain} rays went without one)");
 }
+
+/// A scene that keeps a map of occupied cubes the node was never sent is
+/// refused, and the host is told where: the node would otherwise walk rays
+/// on through cubes it knows nothing of.
+#[test]
+fn a_scene_that_keeps_a_map_never_sent_is_refused() {
+    let (mut node, mut wires) = (Fw::new(0), Wires::default());
+    let host = Port::Host.index();
+    let keeps = |m| match m {
+        Message::SceneBegin(h) => Message::SceneBegin(SceneHeader { map: MapLoad::Kept, ..h }),
+        m => m,
+    };
+    wires.inbox[host].extend(static_frame(0).into_iter().map(keeps));
+    for now in 1..20 {
+        node.poll(now, &mut wires);
+    }
+    assert!(node.failed());
+    let errors: Vec<ErrorReport> = wires.sent[host]
+        .iter()
+        .filter_map(|m| match m {
+            Message::Error(e) => Some(*e),
+            _ => None,
+        })
+        .collect();
+    let first = errors.first().expect("an error report to the host");
+    assert_eq!(
+        (first.code, Found::from_wire(first.b)),
+        (ErrorCode::Unexpected, Some(Found::Site(Site::KeptMapNotHeld)))
+    );
+}

@@ -37,7 +37,13 @@ fn a_working_node_renewed_is_a_new_one() {
     links.set_incarnation(1);
     let mut host = Channel::<8>::new(5);
     host.set_incarnation(500);
-    let header = SceneHeader { grid: [4, 4, 4], ambient: [0; 3], background: [0; 3], max_depth: 1 };
+    let header = SceneHeader {
+        grid: [4, 4, 4],
+        ambient: [0; 3],
+        background: [0; 3],
+        max_depth: 1,
+        map: link_proto::MapLoad::Sent,
+    };
     let assign = Assign {
         array: [1; 3],
         coord: [0; 3],

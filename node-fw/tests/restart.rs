@@ -105,7 +105,13 @@ fn a_new_host_session_makes_the_node_start_over() {
     let (mut node, mut links, mut now) = (TestNode::new(0), TestLinks::new(5), 0);
     links.set_incarnation(1);
     let mut host = peer(500);
-    let header = SceneHeader { grid: [4, 4, 4], ambient: [0; 3], background: [0; 3], max_depth: 1 };
+    let header = SceneHeader {
+        grid: [4, 4, 4],
+        ambient: [0; 3],
+        background: [0; 3],
+        max_depth: 1,
+        map: link_proto::MapLoad::Sent,
+    };
     for m in [hello(), Message::SceneBegin(header), assign()] {
         host.send(m).unwrap();
     }

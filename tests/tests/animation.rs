@@ -9,6 +9,7 @@ use host_tool::results::RenderResult;
 use host_tool::results::history::after_slides;
 use host_tool::results::sequence::FrameRow;
 use host_tool::scene::Scene;
+use host_tool::scene::occupancy::occupancy_msgs;
 use host_tool::scene::path::{CameraPath, SphereKeyframe};
 use host_tool::session::clock::Cycles;
 use host_tool::session::sequence::{self, FrameStart, Sequence, SequenceFrame};
@@ -202,6 +203,48 @@ fn a_moving_sphere_is_sent_again_where_it_moved_and_every_frame_stays_identical(
     let loaded: Vec<bool> = out.iter().map(|f| f.loaded).collect();
     assert_eq!(loaded, [true, false, false, false, false]);
     assert!(out.iter().all(|f| f.result.frame.sums == references[0].frame.sums));
+}
+
+/// A frame fitted afresh over the same spheres moves boxes, so the scene is
+/// sent again, but the map of occupied cubes depends on the spheres alone:
+/// the nodes keep it, and the host sends none: each node's host link
+/// carries at least the map's bits fewer than a single-frame render of the
+/// same boxes, which sends the map with the scene. The kept map is in use: the nodes
+/// walk as many rays and cubes as a single-frame render on the same boxes,
+/// which is sent the map, and without a map they would walk more.
+#[test]
+fn a_reload_over_the_same_spheres_keeps_the_map() {
+    let s = scene();
+    let frames = 3;
+    let opts = options([2, 2, 2], None, Layout::Preview);
+    let out = run(&s, &opts, &Sequence { frames, path: ORBIT, start: FrameStart::Planned });
+    let loaded: Vec<bool> = out.iter().map(|f| f.loaded).collect();
+    assert!(loaded.iter().all(|&l| l), "the orbit's fits must move boxes every frame: {loaded:?}");
+    let host_bytes = |r: &RenderResult<Cycles>| -> Vec<u64> { r.bytes_in.iter().map(|b| b[6]).collect() };
+    let grid = node_fw::Grid::new(s.grid).unwrap();
+    let map_bits = 32 * occupancy_msgs(&s.sphere_msgs(), &grid).len() as u64;
+    assert!(map_bits > 0);
+    let walked = |r: &RenderResult<Cycles>| -> (u64, u64) {
+        let loads = r.frame.loads.iter().map(|l| l.expect("every node reports its load"));
+        loads.fold((0, 0), |(rays, cubes), l| (rays + u64::from(l.rays), cubes + u64::from(l.cube_steps)))
+    };
+    let mut unmapped = opts;
+    unmapped.clear_walks = false;
+    for f in &out[1..] {
+        let at = ORBIT.frame(&s, f.number, frames).unwrap();
+        let alone = render_sim(&at, &opts).unwrap();
+        assert_eq!(alone.partition, f.result.partition, "frame {}: another fit", f.number);
+        for (node, (&kept, &sent)) in host_bytes(&f.result).iter().zip(&host_bytes(&alone)).enumerate() {
+            let (n, kept, sent) = (f.number, kept, sent);
+            assert!(
+                kept + map_bits <= sent,
+                "frame {n}, node {node}: {kept} bytes from the host against {sent}"
+            );
+        }
+        assert_eq!(walked(&f.result), walked(&alone), "frame {}: the kept map walks otherwise", f.number);
+        let without = render_sim(&at, &unmapped).unwrap();
+        assert!(walked(&without).0 > walked(&alone).0, "frame {}: the map spares no ray", f.number);
+    }
 }
 
 /// A frame after a reload sends about as many messages as one without. A

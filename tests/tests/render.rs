@@ -334,7 +334,13 @@ fn a_node_reports_bad_input_the_host_did_not_catch() {
     use link_proto::{Assign, ErrorCode, Message, SceneEnd, SceneHeader, SphereMsg};
     use sim_board::{Board, SimConfig};
     let mut board = Board::new(SimConfig::new([1, 1, 1]));
-    let header = SceneHeader { grid: [8; 3], ambient: [0; 3], background: [0; 3], max_depth: 1 };
+    let header = SceneHeader {
+        grid: [8; 3],
+        ambient: [0; 3],
+        background: [0; 3],
+        max_depth: 1,
+        map: link_proto::MapLoad::Sent,
+    };
     board.send(0, Message::SceneBegin(header));
     let assign = Assign {
         array: [1; 3],
@@ -369,7 +375,13 @@ fn a_node_refuses_a_depth_beyond_the_limit() {
     use sim_board::{Board, SimConfig};
     for (depth, refused) in [(MAX_DEPTH, false), (MAX_DEPTH + 1, true), (u8::MAX, true)] {
         let mut board = Board::new(SimConfig::new([1, 1, 1]));
-        let header = SceneHeader { grid: [8; 3], ambient: [0; 3], background: [0; 3], max_depth: depth };
+        let header = SceneHeader {
+            grid: [8; 3],
+            ambient: [0; 3],
+            background: [0; 3],
+            max_depth: depth,
+            map: link_proto::MapLoad::Sent,
+        };
         board.send(0, Message::SceneBegin(header));
         let mut frame = host_tool::session::frame::FrameBuffer::new(1, 1, 1, 1, [0; 3]);
         frame.finishing = true;

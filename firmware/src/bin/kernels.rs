@@ -284,7 +284,13 @@ fn walk_setups(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
 /// (the node spawns what it evaluated; only a hit the pool cannot take all
 /// children of evaluates the rest again later).
 fn shadings(timer: &mut Timer, grid: &Grid, spheres: &[Sphere]) -> (u64, u64) {
-    let header = SceneHeader { grid: [256; 3], ambient: [3000; 3], background: [0; 3], max_depth: 3 };
+    let header = SceneHeader {
+        grid: [256; 3],
+        ambient: [3000; 3],
+        background: [0; 3],
+        max_depth: 3,
+        map: link_proto::MapLoad::Sent,
+    };
     let lights = [LightMsg { id: 0, position: [10 << 16, 250 << 16, 10 << 16], color: [32768; 3] }];
     let scene = Scene { header: &header, grid, lights: &lights };
     let (mut shaded, mut ticks) = (0u64, 0u64);

@@ -392,6 +392,7 @@ impl Scene {
             ambient: self.ambient.map(q15),
             background: self.background.map(q15),
             max_depth: self.max_depth,
+            map: link_proto::MapLoad::Sent,
         }
     }
 

@@ -22,7 +22,7 @@ pub mod transport;
 
 use std::time::Instant;
 
-use link_proto::{ErrorCode, Message, RenderStart, SceneEnd};
+use link_proto::{ErrorCode, MapLoad, Message, RenderStart, SceneEnd, SceneHeader};
 use node_fw::Port;
 
 use crate::error::HostError;
@@ -45,7 +45,7 @@ pub fn run<T: Transport>(
     scene: &Scene,
     plan: &Plan,
 ) -> Result<RenderResult<T::Time>, HostError> {
-    load(transport, scene, plan);
+    load(transport, scene, plan, MapLoad::Sent);
     frame(transport, plan, 0)
 }
 
@@ -102,17 +102,22 @@ pub fn frame<T: Transport>(
 /// keeps ([`Partition::needs`](crate::plan::partition::Partition::needs)),
 /// not the whole scene: on 64 nodes the whole scene was a thousand messages a
 /// node before its first ray, 7% of a frame.
-pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan) {
+///
+/// With [`MapLoad::Kept`] the nodes keep the map of occupied cubes the last
+/// load sent them, which the caller knows was of these spheres on this grid,
+/// and none is sent. Whether the nodes hold a map afterwards.
+pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan, map: MapLoad) -> bool {
     let spheres = scene.sphere_msgs();
     let lights = scene.light_msgs();
     // A grid the nodes refuse gets the whole scene: they report the error.
     let grid = node_fw::Grid::new(scene.grid).ok();
-    let occupancy = match grid.as_ref().filter(|_| plan.options.clear_walks) {
-        Some(g) => occupancy_msgs(&spheres, g),
-        None => Vec::new(),
+    let occupancy = match (map, grid.as_ref().filter(|_| plan.options.clear_walks)) {
+        (MapLoad::Sent, Some(g)) => occupancy_msgs(&spheres, g),
+        _ => Vec::new(),
     };
+    let header = SceneHeader { map, ..scene.header() };
     for id in 0..plan.tiles.len() {
-        transport.send(id, Message::SceneBegin(scene.header()));
+        transport.send(id, Message::SceneBegin(header));
         transport.send(id, Message::Assign(plan.assign(id)));
         let mut sent = 0u32;
         for s in spheres.iter().filter(|s| grid.as_ref().is_none_or(|g| plan.partition.needs(id, s, g))) {
@@ -128,6 +133,7 @@ pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan) {
         let end = SceneEnd { spheres: sent, lights: lights.len() as u8, occupancy: occupancy.len() as u16 };
         transport.send(id, Message::SceneEnd(end));
     }
+    map == MapLoad::Kept || !occupancy.is_empty()
 }
 
 /// Starts frame `number` on every node: its camera and tile.

@@ -25,7 +25,7 @@ use crate::scene::Scene;
 use crate::scene::path::CameraPath;
 use crate::session::transport::Transport;
 use crate::threads::join;
-use link_proto::{Capacity, SphereMsg};
+use link_proto::{Capacity, MapLoad, SphereMsg};
 
 /// Where each frame after the first starts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -122,6 +122,8 @@ pub fn run<T: Transport>(
     // spheres they were sent.
     let mut held: Option<Partition> = None;
     let mut sent: Option<Vec<SphereMsg>> = None;
+    // Whether the nodes hold a map of the occupied cubes of `sent`.
+    let mut mapped = false;
     std::thread::scope(|scope| {
         let mut ahead = None;
         for k in 0..sequence.frames {
@@ -139,9 +141,12 @@ pub fn run<T: Transport>(
             }
             let Planned { at, plan, spent } = planned;
             let spheres = at.sphere_msgs();
-            let loaded = held.as_ref() != Some(&plan.partition) || sent.as_ref() != Some(&spheres);
+            let same_spheres = sent.as_ref() == Some(&spheres);
+            let loaded = held.as_ref() != Some(&plan.partition) || !same_spheres;
             if loaded {
-                super::load(transport, &at, &plan);
+                // Boxes that moved over the same spheres keep the map.
+                let map = if same_spheres && mapped { MapLoad::Kept } else { MapLoad::Sent };
+                mapped = super::load(transport, &at, &plan, map);
                 sent = Some(spheres);
             }
             let result = super::frame(transport, &plan, k)

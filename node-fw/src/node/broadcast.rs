@@ -3,7 +3,8 @@
 //! new session's reset.
 
 use link_proto::{
-    Assign, ErrorCode, LightMsg, MAX_DEPTH, OccupancyMsg, RenderStart, SceneEnd, SceneHeader, Site, SphereMsg,
+    Assign, ErrorCode, LightMsg, MAX_DEPTH, MapLoad, OccupancyMsg, RenderStart, SceneEnd, SceneHeader, Site,
+    SphereMsg,
 };
 
 use crate::cube_box::CubeBox;
@@ -64,11 +65,18 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: us
         }
         match Grid::new(header.grid) {
             Ok(grid) => {
+                match header.map {
+                    MapLoad::Sent => self.occupancy.begin(&grid),
+                    MapLoad::Kept => {
+                        if self.occupancy.keep(&grid).is_err() {
+                            return self.fail_at(ErrorCode::Unexpected, 0, Site::KeptMapNotHeld);
+                        }
+                    }
+                }
                 self.header = header;
                 self.grid = grid;
                 self.assign = None;
                 self.region.clear();
-                self.occupancy.begin(&grid);
                 self.lights.clear();
                 self.spheres_seen = 0;
                 self.render = None;

@@ -238,8 +238,13 @@ pub const UNNAMED_BOARD: BoardInfo = BoardInfo {
     host_baud: 0,
 };
 
-const NO_HEADER: SceneHeader =
-    SceneHeader { grid: [1; 3], ambient: [0; 3], background: [0; 3], max_depth: 0 };
+const NO_HEADER: SceneHeader = SceneHeader {
+    grid: [1; 3],
+    ambient: [0; 3],
+    background: [0; 3],
+    max_depth: 0,
+    map: link_proto::MapLoad::Sent,
+};
 
 impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: usize> Node<S, R, C, P, O> {
     /// A node with index `id` (row-major over the array), waiting for a scene.

@@ -64,6 +64,7 @@ pub fn two_nodes_sliding() -> Vec<Message> {
             ambient: [8000; 3],
             background: [500; 3],
             max_depth: 1,
+            map: link_proto::MapLoad::Sent,
         }),
         Message::Assign(Assign {
             array: [2, 1, 1],
