@@ -443,8 +443,10 @@ pub struct SceneEnd {
     pub spheres: u32,
     /// Number of lights broadcast.
     pub lights: u8,
-    /// Number of [`Message::Occupancy`] messages sent (none: the node
-    /// knows nothing of the cubes beyond its box).
+    /// Number of [`Message::Occupancy`] messages the scene brings, before
+    /// its end or after it, even after the frame's start: the node uses the
+    /// map once all have come (none: the node knows nothing of the cubes
+    /// beyond its box, unless it keeps its map, [`MapLoad::Kept`]).
     pub occupancy: u16,
 }
 

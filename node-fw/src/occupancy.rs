@@ -41,6 +41,8 @@ pub struct Occupancy<const W: usize> {
     size: [u16; 3],
     /// Messages taken since the scene began.
     taken: u32,
+    /// Messages the scene brings, once its `SceneEnd` has said.
+    expected: Option<u32>,
     /// Complete, and so in use.
     ready: bool,
     /// Kept from the last scene: no message may change it.
@@ -56,11 +58,20 @@ impl<const W: usize> Default for Occupancy<W> {
 impl<const W: usize> Occupancy<W> {
     /// An empty map, not in use.
     pub const fn new() -> Self {
-        Self { words: [0; W], shift: 0, blocks: [0; 3], size: [0; 3], taken: 0, ready: false, kept: false }
+        Self {
+            words: [0; W],
+            shift: 0,
+            blocks: [0; 3],
+            size: [0; 3],
+            taken: 0,
+            expected: None,
+            ready: false,
+            kept: false,
+        }
     }
 
-    /// A new scene's map of `grid`: nothing marked, not in use until
-    /// [`Occupancy::finish`] finds it complete.
+    /// A new scene's map of `grid`: nothing marked, not in use until every
+    /// message [`Occupancy::finish`] counts has come (before it or after).
     pub fn begin(&mut self, grid: &Grid) {
         let size = grid.size().map(u32::from);
         let mut shift = 0;
@@ -77,7 +88,7 @@ impl<const W: usize> Occupancy<W> {
         if !self.ready || self.size != grid.size() {
             return Err(Error::OutOfRange(Field::Occupancy));
         }
-        (self.taken, self.kept) = (0, true);
+        (self.taken, self.expected, self.kept) = (0, None, true);
         Ok(())
     }
 
@@ -85,7 +96,8 @@ impl<const W: usize> Occupancy<W> {
     pub fn take(&mut self, m: &OccupancyMsg, grid: &Grid) -> Result<(), Error> {
         let [gx, gy, gz] = grid.size().map(u32::from);
         let cubes = gx * gy * gz;
-        if self.kept || !m.first.is_multiple_of(CUBES_PER_OCCUPANCY) || m.first >= cubes {
+        let more_than_said = self.expected.is_some_and(|e| self.taken >= e);
+        if self.kept || more_than_said || !m.first.is_multiple_of(CUBES_PER_OCCUPANCY) || m.first >= cubes {
             return Err(Error::OutOfRange(Field::Occupancy));
         }
         for (i, byte) in (0u32..).zip(m.bits) {
@@ -98,17 +110,21 @@ impl<const W: usize> Occupancy<W> {
             }
         }
         self.taken += 1;
+        self.ready = self.expected == Some(self.taken);
         Ok(())
     }
 
-    /// The scene is complete: the map is in use if `sent` messages made it
-    /// and some came (the host sends none when it has no map to give), or
-    /// if it was kept and none came.
+    /// The scene's end says it brings `sent` messages of the map: an error
+    /// if more came already, or any to a kept map. The map is in use once
+    /// all have come, now or later (the host sends none when it has no map
+    /// to give), or at once if it was kept.
     pub fn finish(&mut self, sent: u16) -> Result<(), Error> {
-        if self.taken != u32::from(sent) {
+        let sent = u32::from(sent);
+        if self.taken > sent || (self.kept && sent > 0) {
             return Err(Error::OutOfRange(Field::Occupancy));
         }
-        self.ready = sent > 0 || self.kept;
+        self.expected = Some(sent);
+        self.ready = self.kept || (sent > 0 && self.taken == sent);
         Ok(())
     }
 
@@ -116,8 +132,8 @@ impl<const W: usize> Occupancy<W> {
     /// known beyond the node's box.
     pub fn clear(&mut self) {
         self.words.iter_mut().for_each(|w| *w = 0);
-        (self.shift, self.blocks, self.size, self.taken, self.ready, self.kept) =
-            (0, [0; 3], [0; 3], 0, false, false);
+        (self.shift, self.blocks, self.size) = (0, [0; 3], [0; 3]);
+        (self.taken, self.expected, self.ready, self.kept) = (0, None, false, false);
     }
 
     /// Whether the map is in use.
@@ -231,10 +247,18 @@ mod tests {
         assert!(!map.is_clear([0, 0, 0]), "nothing is clear before the map is complete");
         map.take(&msg(0, &[1]), &grid).unwrap();
         map.take(&msg(256, &[]), &grid).unwrap();
-        assert_eq!(map.finish(3), Err(Error::OutOfRange(Field::Occupancy)), "a message missing");
+        assert_eq!(map.finish(1), Err(Error::OutOfRange(Field::Occupancy)), "more than the scene said");
+        map.begin(&grid);
+        map.take(&msg(0, &[1]), &grid).unwrap();
+        map.finish(2).unwrap();
+        assert!(!map.is_clear([0, 0, 0]), "a message still to come");
+        map.take(&msg(256, &[]), &grid).unwrap();
+        assert!(map.is_clear([0, 0, 0]) && !map.is_clear([1, 0, 0]), "complete after the scene's end");
+        assert_eq!(map.take(&msg(256, &[]), &grid), Err(Error::OutOfRange(Field::Occupancy)), "one too many");
         map.begin(&grid);
         map.take(&msg(0, &[1]), &grid).unwrap();
         map.take(&msg(256, &[]), &grid).unwrap();
+        assert!(!map.is_clear([0, 0, 0]), "not in use before the scene says how many");
         map.finish(2).unwrap();
         assert!(map.is_clear([0, 0, 0]) && !map.is_clear([1, 0, 0]));
         assert!(!map.is_clear([-1, 0, 0]) && !map.is_clear([8, 0, 0]), "outside the grid is never clear");

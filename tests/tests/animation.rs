@@ -209,9 +209,9 @@ fn a_moving_sphere_is_sent_again_where_it_moved_and_every_frame_stays_identical(
 /// sent again, but the map of occupied cubes depends on the spheres alone:
 /// the nodes keep it, and the host sends none: each node's host link
 /// carries at least the map's bits fewer than a single-frame render of the
-/// same boxes, which sends the map with the scene. The kept map is in use: the nodes
-/// walk as many rays and cubes as a single-frame render on the same boxes,
-/// which is sent the map, and without a map they would walk more.
+/// same boxes, which sends the map with the scene. The kept map is in use
+/// from the frame's start: the nodes walk fewer rays than without a map, and
+/// no more than in that single-frame render, whose map comes after its start.
 #[test]
 fn a_reload_over_the_same_spheres_keeps_the_map() {
     let s = scene();
@@ -241,9 +241,17 @@ fn a_reload_over_the_same_spheres_keeps_the_map() {
                 "frame {n}, node {node}: {kept} bytes from the host against {sent}"
             );
         }
-        assert_eq!(walked(&f.result), walked(&alone), "frame {}: the kept map walks otherwise", f.number);
         let without = render_sim(&at, &unmapped).unwrap();
-        assert!(walked(&without).0 > walked(&alone).0, "frame {}: the map spares no ray", f.number);
+        let (kept, alone, without) = (walked(&f.result).0, walked(&alone).0, walked(&without).0);
+        eprintln!(
+            "frame {}: {kept} rays walked with the kept map, {alone} alone, {without} without a map",
+            f.number
+        );
+        assert!(
+            kept < without && kept <= alone,
+            "frame {}: {kept} rays against {alone} and {without}",
+            f.number
+        );
     }
 }
 
@@ -252,14 +260,18 @@ fn a_reload_over_the_same_spheres_keeps_the_map() {
 /// reload with the work of a still scene. Each node's scene takes its own
 /// time on its wire from the host, so the nodes start a reloaded frame at
 /// different times, and the first to start send to neighbours still
-/// loading, who refuse: measured 3.9% more messages. A neighbour's grants
+/// loading, who refuse: measured 3.2% more messages. A neighbour's grants
 /// dropped with our old scene had cost 22% (`node-fw/tests/reload.rs`
 /// holds that fix on one node, where the order of grant and scene is set).
+/// Without clear walks: a moved sphere brings a new map of occupied cubes,
+/// which follows the start, and a frame this small passes a third more rays
+/// before it comes.
 #[test]
 fn a_frame_after_a_reload_sends_about_as_many_messages() {
     let mut s = scene();
     let c = s.spheres[0].center;
-    let opts = options([4, 4, 4], None, Layout::Even);
+    let mut opts = options([4, 4, 4], None, Layout::Even);
+    opts.clear_walks = false;
     let frames = 3;
     let sequence = Sequence { frames, path: CameraPath::Keyframes, start: FrameStart::Carried };
     let still = run(&s, &opts, &sequence);

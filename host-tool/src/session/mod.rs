@@ -22,7 +22,7 @@ pub mod transport;
 
 use std::time::Instant;
 
-use link_proto::{ErrorCode, MapLoad, Message, RenderStart, SceneEnd, SceneHeader};
+use link_proto::{ErrorCode, MapLoad, Message, OccupancyMsg, RenderStart, SceneEnd, SceneHeader};
 use node_fw::Port;
 
 use crate::error::HostError;
@@ -45,19 +45,21 @@ pub fn run<T: Transport>(
     scene: &Scene,
     plan: &Plan,
 ) -> Result<RenderResult<T::Time>, HostError> {
-    load(transport, scene, plan, MapLoad::Sent);
-    frame(transport, plan, 0)
+    let map = load(transport, scene, plan, MapLoad::Sent);
+    frame(transport, plan, 0, &map)
 }
 
 /// Renders frame `number` on nodes that hold the scene and the subregions
 /// `plan.partition` names (sent by [`load`], or left there by the frame
 /// before): start, render until every ray is accounted for, then collect the
 /// final loads, which the nodes send once their slides have settled. Bytes
-/// and busy cycles are the frame's own.
+/// and busy cycles are the frame's own. `map` is what [`load`] left to send
+/// after the start: every node gets it.
 pub fn frame<T: Transport>(
     transport: &mut T,
     plan: &Plan,
     number: u32,
+    map: &[OccupancyMsg],
 ) -> Result<RenderResult<T::Time>, HostError> {
     let [w, h] = plan.trace_size;
     let started = Instant::now();
@@ -70,6 +72,11 @@ pub fn frame<T: Transport>(
     let mut frame =
         FrameBuffer::new(w, h, transport.nodes(), PIXEL_CREDIT, plan.background).sampled(plan.sample_side());
     start(transport, plan, number);
+    for id in nodes.clone() {
+        for m in map {
+            transport.send(id, Message::Occupancy(*m));
+        }
+    }
 
     let mut tracked = Tracked::new(&mut frame);
     let run = transport.run(&mut tracked);
@@ -103,10 +110,15 @@ pub fn frame<T: Transport>(
 /// not the whole scene: on 64 nodes the whole scene was a thousand messages a
 /// node before its first ray, 7% of a frame.
 ///
-/// With [`MapLoad::Kept`] the nodes keep the map of occupied cubes the last
-/// load sent them, which the caller knows was of these spheres on this grid,
-/// and none is sent. Whether the nodes hold a map afterwards.
-pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan, map: MapLoad) -> bool {
+/// The map of occupied cubes is not sent here: a node uses it only once
+/// complete, and it is most of a node's scene (5.5 KB of about 6 on a 32^3
+/// grid), so it follows the frame's start ([`frame()`]), on a wire that
+/// carries little else the host's way during a frame, and the first rays
+/// do not wait for it. What is returned is that map, which `SceneEnd` has
+/// counted. With [`MapLoad::Kept`] the nodes keep the map the last load
+/// sent them, which the caller knows was of these spheres on this grid,
+/// and none is returned.
+pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan, map: MapLoad) -> Vec<OccupancyMsg> {
     let spheres = scene.sphere_msgs();
     let lights = scene.light_msgs();
     // A grid the nodes refuse gets the whole scene: they report the error.
@@ -127,13 +139,10 @@ pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan, map: Map
         for l in &lights {
             transport.send(id, Message::Light(*l));
         }
-        for m in &occupancy {
-            transport.send(id, Message::Occupancy(*m));
-        }
         let end = SceneEnd { spheres: sent, lights: lights.len() as u8, occupancy: occupancy.len() as u16 };
         transport.send(id, Message::SceneEnd(end));
     }
-    map == MapLoad::Kept || !occupancy.is_empty()
+    occupancy
 }
 
 /// Starts frame `number` on every node: its camera and tile.

@@ -143,13 +143,15 @@ pub fn run<T: Transport>(
             let spheres = at.sphere_msgs();
             let same_spheres = sent.as_ref() == Some(&spheres);
             let loaded = held.as_ref() != Some(&plan.partition) || !same_spheres;
+            let mut map = Vec::new();
             if loaded {
                 // Boxes that moved over the same spheres keep the map.
-                let map = if same_spheres && mapped { MapLoad::Kept } else { MapLoad::Sent };
-                mapped = super::load(transport, &at, &plan, map);
+                let keep = if same_spheres && mapped { MapLoad::Kept } else { MapLoad::Sent };
+                map = super::load(transport, &at, &plan, keep);
+                mapped = keep == MapLoad::Kept || !map.is_empty();
                 sent = Some(spheres);
             }
-            let result = super::frame(transport, &plan, k)
+            let result = super::frame(transport, &plan, k, &map)
                 .map_err(|e| if sequence.frames > 1 { e.context(&format!("frame {k}")) } else { e })?;
             held = Some(after_slides(&plan.partition, &result.frame.slides));
             each(SequenceFrame { number: k, result, loaded, planning: spent, plan_wait })?;

@@ -149,9 +149,11 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: us
         }
     }
 
-    /// Part of the map of the grid's occupied cubes; every node gets all of it.
+    /// Part of the map of the grid's occupied cubes; every node gets all of
+    /// it. The map is used only once complete, so the host may send it
+    /// after the frame's start: it does not hold the first rays back.
     pub(super) fn take_occupancy(&mut self, m: &OccupancyMsg) {
-        if self.phase != Phase::Loading {
+        if !matches!(self.phase, Phase::Loading | Phase::Loaded | Phase::Rendering) {
             return self.fail_at(ErrorCode::Unexpected, 0, Site::OccupancyOutOfPhase);
         }
         if let Err(e) = self.occupancy.take(m, &self.grid) {
