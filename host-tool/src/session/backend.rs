@@ -84,7 +84,19 @@ fn render_qemu(
     firmware: &std::path::Path,
     node_timeout: Duration,
 ) -> Result<RenderResult<HostMicros>, HostError> {
-    on_qemu(scene, opts, board, firmware, |ptys| render_serial(scene, opts, ptys, false, node_timeout))
+    on_qemu(scene, opts, board, firmware, |ptys| {
+        render_on(scene, opts, ptys, false, node_timeout, Devices::Emulators)
+    })
+}
+
+/// What answers on the serial devices.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Devices {
+    /// Boards, which take the host's bytes as they come.
+    Boards,
+    /// QEMU's emulated boards, which take them only while idle
+    /// ([`SerialArray::map_first`]).
+    Emulators,
 }
 
 /// Runs `job` on the ptys of an array of emulated `board`s running
@@ -120,7 +132,19 @@ pub fn render_serial(
     order_ports: bool,
     node_timeout: Duration,
 ) -> Result<RenderResult<HostMicros>, HostError> {
-    let mut array = open_serial(opts, ports, order_ports, node_timeout)?;
+    render_on(scene, opts, ports, order_ports, node_timeout, Devices::Boards)
+}
+
+/// [`render_serial`] on `devices`.
+fn render_on(
+    scene: &Scene,
+    opts: &RenderOptions,
+    ports: &[String],
+    order_ports: bool,
+    node_timeout: Duration,
+    devices: Devices,
+) -> Result<RenderResult<HostMicros>, HostError> {
+    let mut array = open_serial(opts, ports, order_ports, node_timeout, devices)?;
     // Fitted to what the boards can hold, known once they have said hello.
     let plan = Plan::new(scene, opts, array.capacity())?;
     crate::session::run(&mut array, scene, &plan)
@@ -133,6 +157,7 @@ fn open_serial(
     ports: &[String],
     order_ports: bool,
     node_timeout: Duration,
+    devices: Devices,
 ) -> Result<SerialArray, HostError> {
     let names = (0..opts.array.iter().map(|&n| usize::from(n)).product())
         .map(|i| {
@@ -142,6 +167,9 @@ fn open_serial(
         .collect();
     // On boards the faults hit the host links (and, emulated, the relay).
     let mut array = SerialArray::open(ports, names, node_timeout)?.with_faults(opts.sim.faults);
+    if devices == Devices::Emulators {
+        array = array.map_first();
+    }
     array.connect()?;
     if order_ports {
         let ordered = array.order_by_cabling(opts.array)?;
@@ -160,18 +188,18 @@ pub fn render_sequence(
     sequence: &Sequence,
     sink: &mut impl FrameSink,
 ) -> Result<(), HostError> {
-    let mut on_boards = |ports: &[String], order_ports: bool| {
-        let mut array = open_serial(opts, ports, order_ports, node_timeout)?;
+    let mut on_boards = |ports: &[String], order_ports: bool, devices: Devices| {
+        let mut array = open_serial(opts, ports, order_ports, node_timeout, devices)?;
         sequence::run(&mut array, scene, opts, sequence, |f| sink.take(f))
     };
     match backend {
         Backend::Sim => sequence::run(&mut super::sim::board(opts), scene, opts, sequence, |f| sink.take(f)),
         Backend::Qemu { board, firmware } => {
-            on_qemu(scene, opts, *board, firmware, |ptys| on_boards(ptys, false))
+            on_qemu(scene, opts, *board, firmware, |ptys| on_boards(ptys, false, Devices::Emulators))
         }
         Backend::Serial { ports, order_ports } => {
             check_port_count(opts, ports)?;
-            on_boards(ports, *order_ports)
+            on_boards(ports, *order_ports, Devices::Boards)
         }
     }
 }

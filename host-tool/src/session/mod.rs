@@ -45,8 +45,8 @@ pub fn run<T: Transport>(
     scene: &Scene,
     plan: &Plan,
 ) -> Result<RenderResult<T::Time>, HostError> {
-    let map = load(transport, scene, plan, MapLoad::Sent);
-    frame(transport, plan, 0, &map)
+    let loaded = load(transport, scene, plan, MapLoad::Sent);
+    frame(transport, plan, 0, &loaded.after_start)
 }
 
 /// Renders frame `number` on nodes that hold the scene and the subregions
@@ -110,15 +110,15 @@ pub fn frame<T: Transport>(
 /// not the whole scene: on 64 nodes the whole scene was a thousand messages a
 /// node before its first ray, 7% of a frame.
 ///
-/// The map of occupied cubes is not sent here: a node uses it only once
+/// The map of occupied cubes is not sent here where it may follow the
+/// start ([`Transport::map_follows_start`]): a node uses it only once
 /// complete, and it is most of a node's scene (5.5 KB of about 6 on a 32^3
 /// grid), so it follows the frame's start ([`frame()`]), on a wire that
 /// carries little else the host's way during a frame, and the first rays
-/// do not wait for it. What is returned is that map, which `SceneEnd` has
-/// counted. With [`MapLoad::Kept`] the nodes keep the map the last load
-/// sent them, which the caller knows was of these spheres on this grid,
-/// and none is returned.
-pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan, map: MapLoad) -> Vec<OccupancyMsg> {
+/// do not wait for it. With [`MapLoad::Kept`] the nodes keep the map the
+/// last load sent them, which the caller knows was of these spheres on this
+/// grid, and none is sent.
+pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan, map: MapLoad) -> Loaded {
     let spheres = scene.sphere_msgs();
     let lights = scene.light_msgs();
     // A grid the nodes refuse gets the whole scene: they report the error.
@@ -139,10 +139,28 @@ pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan, map: Map
         for l in &lights {
             transport.send(id, Message::Light(*l));
         }
+        if !transport.map_follows_start() {
+            for m in &occupancy {
+                transport.send(id, Message::Occupancy(*m));
+            }
+        }
         let end = SceneEnd { spheres: sent, lights: lights.len() as u8, occupancy: occupancy.len() as u16 };
         transport.send(id, Message::SceneEnd(end));
     }
-    occupancy
+    let mapped = map == MapLoad::Kept || !occupancy.is_empty();
+    let after_start = if transport.map_follows_start() { occupancy } else { Vec::new() };
+    Loaded { after_start, mapped }
+}
+
+/// What a [`load`] leaves for the frame.
+#[derive(Debug, Clone, Default)]
+pub struct Loaded {
+    /// The map of occupied cubes, counted by `SceneEnd`, still to send:
+    /// after the frame's start ([`frame()`]).
+    pub after_start: Vec<OccupancyMsg>,
+    /// Whether the nodes hold a map of occupied cubes (or will, once
+    /// `after_start` is sent).
+    pub mapped: bool,
 }
 
 /// Starts frame `number` on every node: its camera and tile.

@@ -147,8 +147,8 @@ pub fn run<T: Transport>(
             if loaded {
                 // Boxes that moved over the same spheres keep the map.
                 let keep = if same_spheres && mapped { MapLoad::Kept } else { MapLoad::Sent };
-                map = super::load(transport, &at, &plan, keep);
-                mapped = keep == MapLoad::Kept || !map.is_empty();
+                let load = super::load(transport, &at, &plan, keep);
+                (map, mapped) = (load.after_start, load.mapped);
                 sent = Some(spheres);
             }
             let result = super::frame(transport, &plan, k, &map)

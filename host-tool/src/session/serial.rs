@@ -68,6 +68,9 @@ pub struct SerialArray {
     last_heartbeat: Instant,
     /// Names of the nodes (their coordinates), for errors.
     names: Vec<String>,
+    /// Whether the map of occupied cubes follows a frame's start
+    /// ([`Transport::map_follows_start`]): not on QEMU's boards.
+    map_follows_start: bool,
 }
 
 impl SerialArray {
@@ -76,7 +79,22 @@ impl SerialArray {
         let incarnation = host_incarnation();
         let links = paths.iter().map(|p| open_link(p, incarnation)).collect::<Result<Vec<_>, _>>()?;
         let now = Instant::now();
-        Ok(Self { links, started: now, timeout, greeted: Vec::new(), last_heartbeat: now, names })
+        Ok(Self {
+            links,
+            started: now,
+            timeout,
+            greeted: Vec::new(),
+            last_heartbeat: now,
+            names,
+            map_follows_start: true,
+        })
+    }
+
+    /// Boards that take the host's bytes only while idle (QEMU's): each
+    /// frame's map of occupied cubes goes before its start.
+    pub fn map_first(mut self) -> Self {
+        self.map_follows_start = false;
+        self
     }
 
     /// Deals `faults` to every frame on the host links, both ways, each
@@ -368,6 +386,10 @@ impl Transport for SerialArray {
     }
 
     /// Resends and damaged frames on the host's side of the links.
+    fn map_follows_start(&self) -> bool {
+        self.map_follows_start
+    }
+
     fn link_stats(&self) -> ChannelStats {
         self.links.iter().map(|l| l.channel.stats).sum()
     }

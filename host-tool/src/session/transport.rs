@@ -57,4 +57,13 @@ pub trait Transport {
     fn busy(&self, _node: usize) -> Option<Busy> {
         None
     }
+    /// Whether the map of occupied cubes follows a frame's start
+    /// ([`crate::session::load`]): where a node takes the host's bytes as
+    /// they come, while it works (a board's UART by DMA, the in-memory
+    /// board). QEMU's boards take a byte only when QEMU's loop runs, which
+    /// a busy guest holds off, so a map sent after the start came after
+    /// most of a small frame there; they are sent it first.
+    fn map_follows_start(&self) -> bool {
+        true
+    }
 }
