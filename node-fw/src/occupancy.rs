@@ -120,10 +120,11 @@ impl<const W: usize> Occupancy<W> {
 
     /// [`Occupancy::take`] where a bit is a cube: a block is a cube and is
     /// numbered as the message numbers it, so the message's 256 cubes are
-    /// eight words of the map, ORed in whole. Cube by cube, a message of the
-    /// paper's scene (a quarter of the cubes marked) cost the emulated
-    /// Cortex-M3 about 3 700 instructions, which the in-memory board did not
-    /// charge once the map came during the frame.
+    /// eight words of the map, ORed in whole. On the emulated Cortex-M3 a
+    /// message with a quarter of its cubes marked (as the paper's scene
+    /// marks them) takes 270 instructions so, and took 7 705 cube by cube
+    /// (the `map_take` kernel of `scripts/firmware.sh`): 1e6 a node for a
+    /// 32^3 grid's map, in a frame once the map follows its start.
     fn take_words(&mut self, m: &OccupancyMsg, cubes: u32) -> Result<(), Error> {
         let first_word = (m.first / 32) as usize;
         let mut start = m.first;

@@ -39,6 +39,9 @@ pub struct CostModel {
     pub retire_message: u64,
     /// Each further record in a retirement message.
     pub retire_record: u64,
+    /// Taking a piece of the map of occupied cubes, beyond its handling as
+    /// a short message.
+    pub map_take: u64,
     /// Each poll that did work: the rest of the board's pass of its loop
     /// around it (every UART polled and its bytes moved a register at a
     /// time, every channel offered its frames, the pool's and the links'
@@ -74,6 +77,7 @@ impl Default for CostModel {
     /// half reflections from inside the grid with half their pixel's credit
     /// (38.0 bytes a frame). A node's end of a retirement (the host's acks
     /// taken) 1 082.7 with one record, 2 738.7 with six: 331 a further record.
+    /// A piece of the occupancy map taken (256 cubes, a quarter marked) 270.1.
     fn default() -> Self {
         Self {
             cube_step: 109,
@@ -90,6 +94,7 @@ impl Default for CostModel {
             short_message: 474,
             retire_message: 1_083,
             retire_record: 331,
+            map_take: 270,
             pass: 0,
         }
     }
@@ -126,7 +131,8 @@ impl CostModel {
                 + u64::from(w.granted_rays) * self.granted_ray
                 + u64::from(short) * self.short_message
                 + u64::from(w.retire_messages) * self.retire_message
-                + u64::from(w.extra_records) * self.retire_record,
+                + u64::from(w.extra_records) * self.retire_record
+                + u64::from(w.map_messages) * self.map_take,
             pass: if w.is_busy() { self.pass } else { 0 },
             polls: u64::from(w.is_busy()),
             sent: u64::from(w.sent),
@@ -267,6 +273,7 @@ mod tests {
             short_message: 984,
             retire_message: 1_603,
             retire_record: 462,
+            map_take: 301,
             pass: 0,
         };
         let w = Work {
@@ -285,11 +292,12 @@ mod tests {
             granted_rays: 1,
             retire_messages: 2,
             extra_records: 3,
+            map_messages: 1,
         };
         let split = c.split(&w);
         assert_eq!(split.compute, 7 * 114 + 4 * 170 + 2 * 95 + 3 * 224 + 2 * 1_290 + 7_186 + 2_924);
         assert_eq!(split.setup, 2 * 440);
-        assert_eq!(split.messaging, 2 * 1_545 + 1_872 + 4 * 984 + 2 * 1_603 + 3 * 462);
+        assert_eq!(split.messaging, 2 * 1_545 + 1_872 + 4 * 984 + 2 * 1_603 + 3 * 462 + 301);
         assert_eq!(split.total(), c.charge(&w));
     }
 }

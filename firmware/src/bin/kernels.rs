@@ -176,6 +176,40 @@ fn clear_looks(timer: &mut Timer) -> (u64, u64) {
     (timer.ticks() - start, looks)
 }
 
+/// A map message taken (`Occupancy::take`): the whole map of a 32^3 grid,
+/// 128 messages, about a quarter of the cubes marked (the paper's scene
+/// marks a quarter), taken ten times over. Per message.
+#[inline(never)]
+fn map_takes(timer: &mut Timer, rng: &mut Lcg) -> (u64, u64) {
+    let Ok(grid) = Grid::new([32; 3]) else { return (0, 0) };
+    let mut msgs = [OccupancyMsg { first: 0, bits: [0; 32] }; 8];
+    for (i, m) in msgs.iter_mut().enumerate() {
+        m.first = 256 * i as u32;
+        for b in m.bits.iter_mut() {
+            for bit in 0..8 {
+                if rng.below(4) == 0 {
+                    *b |= 1 << bit;
+                }
+            }
+        }
+    }
+    let mut map = Occupancy::<1024>::new();
+    let (mut taken, mut ticks) = (0u64, 0u64);
+    for _ in 0..10 {
+        map.begin(&grid);
+        let t0 = timer.ticks();
+        for k in 0..128u32 {
+            let Some(m) = msgs.get((k % 8) as usize) else { continue };
+            let m = OccupancyMsg { first: 256 * k, bits: m.bits };
+            if core::hint::black_box(map.take(&m, &grid)).is_ok() {
+                taken += 1;
+            }
+        }
+        ticks += timer.ticks() - t0;
+    }
+    (ticks, taken)
+}
+
 fn sphere_list(grid: &Grid, rng: &mut Lcg) -> heapless::Vec<Sphere, SPHERES> {
     let mut spheres = heapless::Vec::new();
     let material = MaterialMsg {
@@ -649,6 +683,8 @@ fn main() -> ! {
     let _ = writeln!(out, "kernel clear_walk {} {steps}", per_unit_x100(ticks, steps));
     let (ticks, looks) = clear_looks(&mut timer);
     let _ = writeln!(out, "kernel clear_look {} {looks}", per_unit_x100(ticks, looks));
+    let (ticks, taken) = map_takes(&mut timer, &mut Lcg(777));
+    let _ = writeln!(out, "kernel map_take {} {taken}", per_unit_x100(ticks, taken));
 
     let spheres = sphere_list(&grid, &mut rng);
     if let Some(miss) = line([-100 << 16, 128 << 16, 128 << 16], [1_000_000, 1_234, -987]) {

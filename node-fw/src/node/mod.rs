@@ -107,6 +107,8 @@ pub struct Work {
     /// Records those carried beyond each message's first (retirements travel
     /// several to a message when the host link is behind).
     pub extra_records: u32,
+    /// Of the messages received, pieces of the map of occupied cubes taken.
+    pub map_messages: u32,
 }
 
 impl Work {
@@ -428,6 +430,9 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: us
                 }
                 if matches!(msg, Message::GrantedRay(_)) {
                     work.granted_rays += 1;
+                }
+                if matches!(msg, Message::Occupancy(_)) {
+                    work.map_messages += 1;
                 }
                 if self.phase != Phase::Failed && self.in_session(port, &msg) {
                     self.handle(port, msg);
