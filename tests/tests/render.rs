@@ -321,6 +321,10 @@ fn a_slide_the_receiver_cannot_hold_is_refused_and_reported() {
     opts.initial = Initial::Parallel;
     opts.driving_axis = Some(0);
     opts.balance = Some(paper_slide(25_000, 1000 << 16));
+    // The map of occupied cubes comes after the start and shifts that
+    // timing (here it spares little: every layer of cubes across y but one
+    // holds surfaces), so the test goes without it.
+    opts.clear_walks = false;
     let r = render_sim(&s, &opts).expect("a refused slide is not a failure");
     assert!(!r.frame.refused_slides.is_empty(), "capacity refusals were reported");
     assert_eq!(r.frame.rays_created, r.frame.rays_terminated);
