@@ -50,8 +50,8 @@ pub struct SceneArgs {
 #[derive(Args, Clone)]
 pub struct LinkArgs {
     /// Links of the in-memory board: f413 (NUCLEO-F413ZH boards: 100 MHz,
-    /// neighbour USARTs at 3.125 Mbaud by DMA, host at 921 600 baud by a byte
-    /// interrupt),
+    /// neighbour USARTs at 3.125 Mbaud and the host's at 921 600 baud, every
+    /// link's bytes moved by DMA),
     /// ideal (25 cycles a byte, no CPU per byte) or emulated (the QEMU
     /// boards: polled UARTs, the loop's pass charged) [default: f413].
     #[arg(long, value_name = "PRESET", value_parser = crate::session::links::preset_named)]
