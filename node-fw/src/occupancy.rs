@@ -43,7 +43,9 @@ pub struct Occupancy<const W: usize> {
     taken: u32,
     /// Messages the scene brings, once its `SceneEnd` has said.
     expected: Option<u32>,
-    /// Complete, and so in use.
+    /// Complete, and so in use: kept, or every message `expected` taken.
+    /// Held apart from them because [`Occupancy::is_clear`], a clear walk's
+    /// every cube, reads it.
     ready: bool,
     /// Kept from the last scene: no message may change it.
     kept: bool,

@@ -128,6 +128,7 @@ pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan, map: Map
         _ => Vec::new(),
     };
     let header = SceneHeader { map, ..scene.header() };
+    let follows = transport.map_follows_start();
     for id in 0..plan.tiles.len() {
         transport.send(id, Message::SceneBegin(header));
         transport.send(id, Message::Assign(plan.assign(id)));
@@ -139,7 +140,7 @@ pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan, map: Map
         for l in &lights {
             transport.send(id, Message::Light(*l));
         }
-        if !transport.map_follows_start() {
+        if !follows {
             for m in &occupancy {
                 transport.send(id, Message::Occupancy(*m));
             }
@@ -148,12 +149,12 @@ pub fn load(transport: &mut impl Transport, scene: &Scene, plan: &Plan, map: Map
         transport.send(id, Message::SceneEnd(end));
     }
     let mapped = map == MapLoad::Kept || !occupancy.is_empty();
-    let after_start = if transport.map_follows_start() { occupancy } else { Vec::new() };
+    let after_start = if follows { occupancy } else { Vec::new() };
     Loaded { after_start, mapped }
 }
 
 /// What a [`load`] leaves for the frame.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct Loaded {
     /// The map of occupied cubes, counted by `SceneEnd`, still to send:
     /// after the frame's start ([`frame()`]).
