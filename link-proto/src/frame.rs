@@ -213,12 +213,15 @@ fn encode_retire_message(records: &Retirements, out: &mut [u8]) -> Result<usize,
     Ok(2 + n)
 }
 
-/// postcard's variant index of [`Message::Ray`], the first byte of its body
-/// after the sequence number (a test holds it to postcard's).
+/// postcard's variant index of [`Message::Ray`] (a test holds it to
+/// postcard's). A ray's message is not written so on the wire: its own
+/// head byte, with [`ray_wire::RAY`] set, is its tag. A body that starts so
+/// is refused, which leaves each ray message one encoding.
 const RAY_TAG: u8 = 7;
 /// The same of [`Message::GrantedRay`].
 const GRANTED_RAY_TAG: u8 = 24;
-/// The same of [`Message::Retire`].
+/// postcard's variant index of [`Message::Retire`], the first byte of its
+/// body after the sequence number.
 const RETIRE_TAG: u8 = 8;
 /// The same of the small messages a link carries most: acknowledgements
 /// alone, and the grants that pass rays.
@@ -284,19 +287,16 @@ pub fn encode_outgoing_ray(ray: &OutgoingRay<'_>, out: &mut [u8]) -> Result<usiz
     encode_ray_message(ray, out)
 }
 
-/// A ray's message as it follows the sequence number, as postcard writes it
-/// (the variant's index, then the ray's wire form, whose flags say how long
-/// it is) but with the ray packed straight into place. Through serde the
-/// ray was packed into a zeroed scratch buffer and copied, and the variant
-/// dispatched: a tenth of a hop's instructions at each end, for the message
-/// that is most of the traffic.
+/// A ray's message as it follows the sequence number: the ray's wire form,
+/// whose head byte is the message's tag (postcard would write the variant's
+/// index before it, a byte a hop more) and whose header says how long it
+/// is, packed straight into place. Through serde the ray was packed into a
+/// zeroed scratch buffer and copied, and the variant dispatched: a tenth of
+/// a hop's instructions at each end, for the message that is most of the
+/// traffic.
 #[inline(always)]
 fn encode_ray_message(ray: &OutgoingRay<'_>, out: &mut [u8]) -> Result<usize, EncodeError> {
-    let tag = if ray.granted { GRANTED_RAY_TAG } else { RAY_TAG };
-    let (head, bytes) = out.split_first_mut().ok_or(EncodeError::BufferTooSmall)?;
-    let n = ray_wire::encode_outgoing(ray, bytes).ok_or(EncodeError::BufferTooSmall)?;
-    *head = tag;
-    Ok(1 + n)
+    ray_wire::encode_outgoing(ray, out).ok_or(EncodeError::BufferTooSmall)
 }
 
 /// Incremental frame decoder with a fixed buffer.
@@ -500,10 +500,8 @@ fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<(Batch, Batch),
     match &*body {
         // A ray, read as `encode_ray_message` writes it: no serde dispatch,
         // and written straight into `out`.
-        [seq, tag @ (RAY_TAG | GRANTED_RAY_TAG), rest @ ..] => {
-            let ack = ray_wire::decode_ray_into(rest, *tag == GRANTED_RAY_TAG, &mut out.msg, |trailer| {
-                decode_trailer(trailer).ok()
-            });
+        [seq, rest @ ..] if rest.first().is_some_and(|&tag| tag & ray_wire::RAY != 0) => {
+            let ack = ray_wire::decode_ray_into(rest, &mut out.msg, |trailer| decode_trailer(trailer).ok());
             (out.seq, out.ack) = (*seq, ack.ok_or(DecodeError::Body)?);
             Ok((Batch::NONE, Batch::NONE))
         }
@@ -524,6 +522,7 @@ fn decode_payload(encoded: &mut [u8], out: &mut Frame) -> Result<(Batch, Batch),
             put(out, *seq, Message::RayReply(reply), trailer)
         }
         [seq, GRANT_TAG, n @ 0..0x80, trailer @ ..] => put(out, *seq, Message::Grant(u16::from(*n)), trailer),
+        [_, RAY_TAG | GRANTED_RAY_TAG, ..] => Err(DecodeError::Body),
         _ => {
             // Straight from the deserializer: `take_from_bytes` moves the frame
             // through two more temporaries, each a byte-wise copy on a Cortex-M. And
@@ -588,9 +587,12 @@ fn decode_message(bytes: &[u8], out: &mut Message, left: u8) -> Result<u8, Decod
         // Within a buffer of at most 255 bytes.
         (_, n) => u8::try_from(n).map_err(|_| DecodeError::Body),
     };
-    if let [tag @ (RAY_TAG | GRANTED_RAY_TAG), tail @ ..] = bytes {
-        let n = ray_wire::decode_ray_into(tail, *tag == GRANTED_RAY_TAG, out, |after| rest(after).ok());
-        return n.ok_or(DecodeError::Body);
+    match bytes.first() {
+        Some(&tag) if tag & ray_wire::RAY != 0 => {
+            return ray_wire::decode_ray_into(bytes, out, |after| rest(after).ok()).ok_or(DecodeError::Body);
+        }
+        Some(&(RAY_TAG | GRANTED_RAY_TAG)) => return Err(DecodeError::Body),
+        _ => {}
     }
     let (msg, after) = postcard::take_from_bytes::<Message>(bytes).map_err(|_| DecodeError::Body)?;
     let n = rest(after)?;

@@ -28,6 +28,7 @@ mod pack;
 pub mod ray_wire;
 pub mod retirements;
 pub mod site;
+pub mod unit_dir;
 
 pub use board::{BoardId, BoardInfo, BoardKind, ClockSource, FirmwareVersion, PeerNote};
 pub use frame::{
@@ -41,4 +42,4 @@ pub use site::{Found, Site};
 
 /// Version of the wire protocol; nodes and host exchange it in [`Hello`].
 /// Bump it whenever a message changes shape (postcard carries no field names).
-pub const PROTOCOL_VERSION: u16 = 26;
+pub const PROTOCOL_VERSION: u16 = 27;

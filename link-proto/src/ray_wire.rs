@@ -1,34 +1,44 @@
 //! A ray's wire form: fixed little-endian fields, packed and unpacked by
 //! hand, carried in a frame as its bare bytes (to postcard, a tuple of
-//! them): its flag bytes say how long it is, so it needs no length.
+//! them): its header says how long it is, so it needs no length.
 //!
 //! Rays are most of the traffic between nodes, and every byte of a ray is
 //! paid three times: on the wire, and by the CRC and COBS at both ends. So a
 //! ray carries only what its exact continuation needs, in the shortest of a
-//! few fixed forms that two flag bytes choose:
+//! few fixed forms that its header chooses:
+//! - the first byte has its top bit set, which no other message's first
+//!   byte has (postcard's variant indices are under 128): in a frame it is
+//!   the message's tag as well, with a bit for a ray passed on a grant;
 //! - a primary ray's origin is the eye, which every node knows: a node
 //!   sends [`ORIGIN_AT_EYE`] in its place and it takes no bytes;
+//! - any other origin inside the grid's first 32 cubes a side (every
+//!   reflected or shadow ray's in a grid of up to 32 cubes: it starts on a
+//!   sphere the grid holds) takes 21 bits a component, eight bytes in all;
+//!   inside its first 256 cubes three bytes a component, else four;
+//! - a unit direction takes nine bytes, its largest component left out
+//!   ([`crate::unit_dir`]), any other twelve;
+//! - cells under 32 and a pixel under 2^17 (every cell of a grid up to 32
+//!   cubes a side, every pixel of an image up to 362x362) take four bytes
+//!   together, cells under 256 and a pixel under 2^24 six, else ten;
 //! - weights at full strength (every primary ray) take none, weights under
 //!   2^16 two bytes each, else four;
 //! - credit of exactly 2^32 (a primary ray's) takes none; an odd multiple
 //!   up to 7 of a power of two (every other ray's: a hit splits its ray's
 //!   credit among its children by powers of two) one byte
 //!   ([`crate::credit`]); any other under 2^32 four bytes, else eight;
-//! - any other origin inside the grid's first 256 cubes (every reflected or
-//!   shadow ray's: it starts on a sphere the grid holds) three bytes a
-//!   component, else four;
-//! - cells under 256 (every grid cell) one byte each and a pixel under 2^24
-//!   (every pixel of an image up to 4096x4096) three bytes, else two and four;
 //! - a class under 256 one byte, else two; a zero tag (every ray passed on a
-//!   grant) none; depth under 3 rides in the flags.
+//!   grant) none; depth under 3 rides in the header.
+//!
+//! What few rays need (a tag, a carried hit, a distance to stop at, a wide
+//! class or wide cells) is flagged in a third header byte that only they carry.
 //!
 //! Any [`RayMsg`] round-trips, and each has exactly one encoding: bytes that
 //! are not the encoder's choice for some ray are refused, never read as
 //! something else.
 //!
-//! Layout: flags, forms, \[depth\], \[origin\], direction (3 x i32), cell,
-//! pixel, \[weights\], \[credit\], class, \[tag\], then `ignore`
-//! (u16), `t_max` (i32) and `best` (t as i32, then the sphere) when present.
+//! Layout: head, forms, \[more\], \[depth\], \[origin\], direction, cells and
+//! pixel, \[weights\], \[credit\], class, \[tag\], then `ignore` (u16),
+//! `t_max` (i32) and `best` (t as i32, then the sphere) when present.
 
 use serde::de::{Error as _, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
@@ -36,40 +46,63 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use crate::credit;
 use crate::message::{HitMsg, MaterialMsg, Message, RayKind, RayMsg, SphereMsg};
 use crate::pack::{Reader, Writer};
+use crate::unit_dir;
 
 /// The origin a node writes for a primary ray that starts at the eye: the
 /// wire leaves it out, and the receiver puts its own eye back. Far outside
 /// every accepted coordinate range, so a ray that keeps it is refused.
 pub const ORIGIN_AT_EYE: [i32; 3] = [i32::MIN; 3];
 
-// The first flag byte: what is present.
-const HAS_IGNORE: u8 = 1 << 0;
-const HAS_BEST: u8 = 1 << 1;
-const HAS_T_MAX: u8 = 1 << 2;
-const KIND_SHIFT: u32 = 3;
+// The head byte: a ray, on a grant or not, its kind, its credit's form and its depth.
+/// Set in every ray's first byte, and in no other message's.
+pub const RAY: u8 = 1 << 7;
+/// A ray passed on a grant ([`Message::GrantedRay`]); never in a bare ray's bytes.
+pub const GRANTED: u8 = 1 << 6;
+const KIND_SHIFT: u32 = 4;
 const KIND_MASK: u8 = 0b11 << KIND_SHIFT;
-const HAS_TAG: u8 = 1 << 5;
-const WIDE_CLASS: u8 = 1 << 6;
-const AT_EYE: u8 = 1 << 7;
-
-// The second: how long the variable fields are, and the depth.
-const WEIGHTS_MASK: u8 = 0b11;
-const WEIGHTS_FULL: u8 = 0;
-const WEIGHTS_SHORT: u8 = 1;
-const WEIGHTS_LONG: u8 = 2;
 /// The credit's form ([`credit::Form`]), its code in two bits.
 const CREDIT_SHIFT: u32 = 2;
 const CREDIT_MASK: u8 = 0b11 << CREDIT_SHIFT;
-/// Cells two bytes each and the pixel four, for a cell or a pixel out of the short forms.
-const WIDE: u8 = 1 << 4;
-/// The origin in three bytes a component.
-const SHORT_ORIGIN: u8 = 1 << 5;
-const DEPTH_SHIFT: u32 = 6;
+const DEPTH_MASK: u8 = 0b11;
 /// A depth this large or larger follows in a byte of its own. Depths 0 to
 /// 2 (a primary ray, its shadow rays, one reflection and its shadow rays)
 /// are most of the traffic.
 const DEPTH_ESCAPE: u8 = 3;
 
+// The forms byte.
+const WEIGHTS_MASK: u8 = 0b11;
+const WEIGHTS_FULL: u8 = 0;
+const WEIGHTS_SHORT: u8 = 1;
+const WEIGHTS_LONG: u8 = 2;
+const ORIGIN_SHIFT: u32 = 2;
+const ORIGIN_MASK: u8 = 0b11 << ORIGIN_SHIFT;
+const ORIGIN_EYE: u8 = 0;
+const ORIGIN_PACKED: u8 = 1 << ORIGIN_SHIFT;
+const ORIGIN_SHORT: u8 = 2 << ORIGIN_SHIFT;
+const ORIGIN_LONG: u8 = 3 << ORIGIN_SHIFT;
+/// The direction in [`unit_dir`]'s nine bytes.
+const COMPACT_DIR: u8 = 1 << 4;
+const HAS_IGNORE: u8 = 1 << 5;
+/// Cells and pixel in four bytes.
+const PACKED_CELLS: u8 = 1 << 6;
+/// The byte of rarer flags follows.
+const MORE: u8 = 1 << 7;
+
+// The byte of rarer flags: present, and not zero, only when one is set.
+const HAS_TAG: u8 = 1 << 0;
+const HAS_BEST: u8 = 1 << 1;
+const HAS_T_MAX: u8 = 1 << 2;
+const WIDE_CLASS: u8 = 1 << 3;
+/// Cells two bytes each and the pixel four, for a cell or a pixel out of the short forms.
+const WIDE_CELLS: u8 = 1 << 4;
+const MORE_BITS: u8 = 0b1_1111;
+
+/// Packed origin components are under this: 21 bits.
+const PACKED_ORIGIN_LIMIT: u32 = 1 << 21;
+const LOW21: u64 = (1 << 21) - 1;
+/// Packed cells are under this (5 bits each), a packed pixel under 2^17.
+const PACKED_CELL_LIMIT: u16 = 1 << 5;
+const PACKED_PIXEL_LIMIT: u32 = 1 << 17;
 /// Short origin components and pixels are under this: three bytes.
 const SHORT_LIMIT: u32 = 1 << 24;
 
@@ -82,7 +115,7 @@ pub const PIXEL_CREDIT: u64 = 1 << 32;
 /// A sphere's bytes: id, centre, radius, colour, four coefficients and the exponent.
 const SPHERE_LEN: usize = 2 + 12 + 4 + 6 + 8 + 1;
 /// The longest ray: every option present, every field in its long form.
-pub const RAY_MAX_LEN: usize = 3 + 12 + 12 + 6 + 4 + 12 + 8 + 2 + 2 + 2 + 4 + 4 + SPHERE_LEN;
+pub const RAY_MAX_LEN: usize = 3 + 1 + 12 + 12 + 10 + 12 + 8 + 2 + 2 + 2 + 4 + 4 + SPHERE_LEN;
 
 fn kind_bits(kind: RayKind) -> u8 {
     let k = match kind {
@@ -93,8 +126,8 @@ fn kind_bits(kind: RayKind) -> u8 {
     k << KIND_SHIFT
 }
 
-fn kind_of(flags: u8) -> Option<RayKind> {
-    match (flags & KIND_MASK) >> KIND_SHIFT {
+fn kind_of(head: u8) -> Option<RayKind> {
+    match (head & KIND_MASK) >> KIND_SHIFT {
         0 => Some(RayKind::Primary),
         1 => Some(RayKind::Reflected),
         2 => Some(RayKind::Shadow),
@@ -145,23 +178,40 @@ impl<'a> OutgoingRay<'a> {
     }
 }
 
-/// The flag bytes the encoder chooses for `out`, going with `origin`, whose
-/// credit takes `credit`.
-fn flags_of(out: &OutgoingRay<'_>, origin: [i32; 3], credit: credit::Form) -> [u8; 2] {
-    let ray = out.ray;
-    let mut flags = kind_bits(ray.kind);
-    for (set, bit) in [
-        (ray.ignore.is_some(), HAS_IGNORE),
-        (ray.best.is_some(), HAS_BEST),
-        (ray.t_max.is_some(), HAS_T_MAX),
-        (out.tag != 0, HAS_TAG),
-        (out.class > 0xff, WIDE_CLASS),
-        (at_eye(origin), AT_EYE),
-    ] {
-        if set {
-            flags |= bit;
-        }
+/// The origin's form.
+fn origin_form(origin: [i32; 3]) -> u8 {
+    if at_eye(origin) {
+        ORIGIN_EYE
+    } else if origin.iter().all(|&c| (c as u32) < PACKED_ORIGIN_LIMIT) {
+        ORIGIN_PACKED
+    } else if origin.iter().all(|&c| (c as u32) < SHORT_LIMIT) {
+        ORIGIN_SHORT
+    } else {
+        ORIGIN_LONG
     }
+}
+
+/// Cells and pixel in four bytes, if they fit.
+fn packed_cells(cell: [u16; 3], pixel: u32) -> bool {
+    cell.iter().all(|&c| c < PACKED_CELL_LIMIT) && pixel < PACKED_PIXEL_LIMIT
+}
+
+/// Cells and pixel in ten bytes: they fit no shorter form.
+fn wide_cells(cell: [u16; 3], pixel: u32) -> bool {
+    cell.iter().any(|&c| c > 0xff) || pixel >= SHORT_LIMIT
+}
+
+/// The header bytes the encoder chooses for `out`, going with `origin`,
+/// whose credit takes `credit` and whose direction is compact or not.
+/// Each flag is its condition shifted into place, without a branch.
+fn header_of(out: &OutgoingRay<'_>, origin: [i32; 3], credit: credit::Form, compact: bool) -> [u8; 3] {
+    let ray = out.ray;
+    let bit = |set: bool, bit: u8| u8::from(set) * bit;
+    let head = RAY
+        | bit(out.granted, GRANTED)
+        | kind_bits(ray.kind)
+        | credit.code() << CREDIT_SHIFT
+        | ray.depth.min(DEPTH_ESCAPE);
     let weights = if ray.weight.iter().all(|&w| w == FULL_WEIGHT) {
         WEIGHTS_FULL
     } else if ray.weight.iter().all(|&w| w <= 0xffff) {
@@ -169,15 +219,18 @@ fn flags_of(out: &OutgoingRay<'_>, origin: [i32; 3], credit: credit::Form) -> [u
     } else {
         WEIGHTS_LONG
     };
-    let credit = credit.code() << CREDIT_SHIFT;
-    let wide = if ray.cell.iter().any(|&c| c > 0xff) || ray.pixel >= SHORT_LIMIT { WIDE } else { 0 };
-    let origin = if short_origin(origin) { SHORT_ORIGIN } else { 0 };
-    [flags, weights | credit | wide | origin | (ray.depth.min(DEPTH_ESCAPE) << DEPTH_SHIFT)]
-}
-
-/// Whether every component of `origin` fits three bytes (the eye's do not).
-fn short_origin(origin: [i32; 3]) -> bool {
-    origin.iter().all(|&c| (c as u32) < SHORT_LIMIT)
+    let more = bit(out.tag != 0, HAS_TAG)
+        | bit(ray.best.is_some(), HAS_BEST)
+        | bit(ray.t_max.is_some(), HAS_T_MAX)
+        | bit(out.class > 0xff, WIDE_CLASS)
+        | bit(wide_cells(ray.cell, ray.pixel), WIDE_CELLS);
+    let forms = weights
+        | origin_form(origin)
+        | bit(compact, COMPACT_DIR)
+        | bit(ray.ignore.is_some(), HAS_IGNORE)
+        | bit(packed_cells(ray.cell, ray.pixel), PACKED_CELLS)
+        | bit(more != 0, MORE);
+    [head, forms, more]
 }
 
 /// The low three bytes of `v`.
@@ -186,39 +239,61 @@ fn three_bytes(v: u32) -> [u8; 3] {
     [a, b, c]
 }
 
-/// Packs `ray` into `out`; the length written, or `None` if `out` is shorter
-/// than the ray needs ([`RAY_MAX_LEN`] always suffices).
+/// Packs `ray` into `out` as a bare ray (not on a grant); the length
+/// written, or `None` if `out` is shorter than the ray needs
+/// ([`RAY_MAX_LEN`] always suffices).
 #[inline(always)]
 pub fn encode_ray(ray: &RayMsg, out: &mut [u8]) -> Option<usize> {
     encode_outgoing(&OutgoingRay::of(ray, false), out)
 }
 
-/// Packs the ray `o` sends into `out`, as [`encode_ray`] packs the ray it
-/// stands for ([`OutgoingRay::message`]).
+/// Packs the message `o` stands for ([`OutgoingRay::message`]) into `out`,
+/// its head byte its tag in a frame: as [`encode_ray`] packs the ray, with
+/// [`GRANTED`] set on a grant.
 #[inline(always)]
 pub fn encode_outgoing(o: &OutgoingRay<'_>, out: &mut [u8]) -> Option<usize> {
     let ray = o.ray;
     let origin = o.origin();
     let credit = credit::Form::of(ray.credit);
-    let [flags, forms] = flags_of(o, origin, credit);
+    let dir = unit_dir::compact(ray.dir);
+    let [head, forms, more] = header_of(o, origin, credit, dir.is_some());
     let mut w = Writer::new(out);
-    w.put(&[flags, forms])?;
+    w.put(&[head, forms])?;
+    if more != 0 {
+        w.put(&[more])?;
+    }
     if ray.depth >= DEPTH_ESCAPE {
         w.put(&[ray.depth])?;
     }
-    if forms & SHORT_ORIGIN != 0 {
-        for v in origin {
-            w.put(&three_bytes(v as u32))?;
+    match forms & ORIGIN_MASK {
+        ORIGIN_PACKED => {
+            let [x, y, z] = origin.map(|c| u64::from(c as u32));
+            w.put(&(x | y << 21 | z << 42).to_le_bytes())?;
         }
-    } else if flags & AT_EYE == 0 {
-        for v in origin {
-            w.put(&v.to_le_bytes())?;
+        ORIGIN_SHORT => {
+            for v in origin {
+                w.put(&three_bytes(v as u32))?;
+            }
+        }
+        ORIGIN_LONG => {
+            for v in origin {
+                w.put(&v.to_le_bytes())?;
+            }
+        }
+        _ => {}
+    }
+    match dir {
+        Some(bytes) => w.put(&bytes)?,
+        None => {
+            for v in ray.dir {
+                w.put(&v.to_le_bytes())?;
+            }
         }
     }
-    for v in ray.dir {
-        w.put(&v.to_le_bytes())?;
-    }
-    if forms & WIDE != 0 {
+    if forms & PACKED_CELLS != 0 {
+        let [x, y, z] = ray.cell.map(u32::from);
+        w.put(&(x | y << 5 | z << 10 | ray.pixel << 15).to_le_bytes())?;
+    } else if more & WIDE_CELLS != 0 {
         for c in ray.cell {
             w.put(&c.to_le_bytes())?;
         }
@@ -235,7 +310,7 @@ pub fn encode_outgoing(o: &OutgoingRay<'_>, out: &mut [u8]) -> Option<usize> {
         }
     }
     credit.write(ray.credit, &mut w)?;
-    if flags & WIDE_CLASS != 0 {
+    if more & WIDE_CLASS != 0 {
         w.put(&o.class.to_le_bytes())?;
     } else {
         w.put(&[o.class as u8])?;
@@ -269,29 +344,29 @@ fn put_sphere(w: &mut Writer<'_>, s: &SphereMsg) -> Option<()> {
     w.put(&[m.shininess])
 }
 
-/// Unpacks a ray; `None` unless `bytes` are exactly one ray's wire form:
-/// the one [`encode_ray`] writes. Each form is checked as it is read (a
-/// field written longer than its value needs is refused), which costs a
-/// fraction of choosing the flags again and comparing them.
+/// Unpacks a bare ray; `None` unless `bytes` are exactly one ray's wire
+/// form: the one [`encode_ray`] writes. Each form is checked as it is read
+/// (a field written longer than its value needs is refused), which costs a
+/// fraction of choosing the header again and comparing it.
 #[inline(always)]
 pub fn decode_ray(bytes: &[u8]) -> Option<RayMsg> {
-    read_ray(bytes, |ray, rest| rest.is_empty().then_some(ray))
+    read_ray(bytes, |ray, granted, rest| (!granted && rest.is_empty()).then_some(ray))
 }
 
-/// The ray at the start of `bytes` as the message of a ray's frame, on a
-/// grant or not, written into `out` if `after` takes the bytes that follow
-/// it (a frame gives a ray no length: its flags say how long it is); what
-/// `after` made of them. `out` is untouched unless both are good. Each
-/// variant is built where it goes: a ray unpacked and then moved into the
-/// message cost each received frame a copy of its 120 bytes.
+/// The ray message at the start of `bytes` (its head byte its tag: a
+/// [`Message::GrantedRay`] if [`GRANTED`] is set, else a [`Message::Ray`]),
+/// written into `out` if `after` takes the bytes that follow it (a frame
+/// gives a ray no length: its header says how long it is); what `after`
+/// made of them. `out` is untouched unless both are good. Each variant is
+/// built where it goes: a ray unpacked and then moved into the message cost
+/// each received frame a copy of its 120 bytes.
 #[inline(always)]
 pub fn decode_ray_into<T>(
     bytes: &[u8],
-    granted: bool,
     out: &mut Message,
     after: impl FnOnce(&[u8]) -> Option<T>,
 ) -> Option<T> {
-    read_ray(bytes, |ray, rest| {
+    read_ray(bytes, |ray, granted, rest| {
         let made = after(rest)?;
         *out = if granted { Message::GrantedRay(ray) } else { Message::Ray(ray) };
         Some(made)
@@ -299,30 +374,50 @@ pub fn decode_ray_into<T>(
 }
 
 /// Unpacks the ray at the start of `bytes` as [`decode_ray`] says and hands
-/// it to `finish`, with the bytes after it, once every field is read and
-/// checked.
+/// it to `finish`, with whether it came on a grant and the bytes after it,
+/// once every field is read and checked.
 #[inline(always)]
-fn read_ray<T>(bytes: &[u8], finish: impl FnOnce(RayMsg, &[u8]) -> Option<T>) -> Option<T> {
+fn read_ray<T>(bytes: &[u8], finish: impl FnOnce(RayMsg, bool, &[u8]) -> Option<T>) -> Option<T> {
     let mut r = Reader { bytes };
-    let flags = r.u8()?;
+    let head = r.u8().filter(|h| h & RAY != 0)?;
     let forms = r.u8()?;
-    let kind = kind_of(flags)?;
-    let depth = match forms >> DEPTH_SHIFT {
+    let more = if forms & MORE != 0 { r.u8().filter(|&m| m != 0 && m & !MORE_BITS == 0)? } else { 0 };
+    let kind = kind_of(head)?;
+    let depth = match head & DEPTH_MASK {
         DEPTH_ESCAPE => r.u8().filter(|&d| d >= DEPTH_ESCAPE)?,
         d => d,
     };
-    let origin = match (flags & AT_EYE != 0, forms & SHORT_ORIGIN != 0) {
-        (true, false) => ORIGIN_AT_EYE,
-        (false, true) => [r.u24()? as i32, r.u24()? as i32, r.u24()? as i32],
-        (false, false) => r.i32x3().filter(|&o| !at_eye(o) && !short_origin(o))?,
-        (true, true) => return None,
+    let origin = match forms & ORIGIN_MASK {
+        ORIGIN_EYE => ORIGIN_AT_EYE,
+        ORIGIN_PACKED => {
+            let v = u64::from_le_bytes(r.take()?);
+            if v >> 63 != 0 {
+                return None;
+            }
+            [v & LOW21, v >> 21 & LOW21, v >> 42].map(|c| c as i32)
+        }
+        ORIGIN_SHORT => [r.u24()? as i32, r.u24()? as i32, r.u24()? as i32],
+        _ => r.i32x3()?,
     };
-    let dir = r.i32x3()?;
-    let (cell, pixel) = if forms & WIDE != 0 {
-        Some(([r.u16()?, r.u16()?, r.u16()?], r.u32()?))
-            .filter(|(c, p)| c.iter().any(|&c| c > 0xff) || *p >= SHORT_LIMIT)?
+    if origin_form(origin) != forms & ORIGIN_MASK {
+        return None;
+    }
+    let dir = if forms & COMPACT_DIR != 0 {
+        unit_dir::expand(&r.take()?)?
     } else {
-        ([u16::from(r.u8()?), u16::from(r.u8()?), u16::from(r.u8()?)], r.u24()?)
+        r.i32x3().filter(|&d| unit_dir::compact(d).is_none())?
+    };
+    let (cell, pixel) = match (forms & PACKED_CELLS != 0, more & WIDE_CELLS != 0) {
+        (true, false) => {
+            let v = r.u32()?;
+            ([v & 0x1f, v >> 5 & 0x1f, v >> 10 & 0x1f].map(|c| c as u16), v >> 15)
+        }
+        (false, false) => Some(([u16::from(r.u8()?), u16::from(r.u8()?), u16::from(r.u8()?)], r.u24()?))
+            .filter(|&(c, p)| !packed_cells(c, p))?,
+        (false, true) => {
+            Some(([r.u16()?, r.u16()?, r.u16()?], r.u32()?)).filter(|&(c, p)| wide_cells(c, p))?
+        }
+        (true, true) => return None,
     };
     let weight = match forms & WEIGHTS_MASK {
         WEIGHTS_FULL => [FULL_WEIGHT; 3],
@@ -331,15 +426,16 @@ fn read_ray<T>(bytes: &[u8], finish: impl FnOnce(RayMsg, &[u8]) -> Option<T>) ->
         WEIGHTS_LONG => Some([r.u32()?, r.u32()?, r.u32()?]).filter(|w| w.iter().any(|&w| w > 0xffff))?,
         _ => return None,
     };
-    let credit = credit::Form::read((forms & CREDIT_MASK) >> CREDIT_SHIFT, &mut r)?;
-    let class = if flags & WIDE_CLASS != 0 { r.u16().filter(|&c| c > 0xff)? } else { u16::from(r.u8()?) };
-    let tag = if flags & HAS_TAG != 0 { r.u16().filter(|&t| t != 0)? } else { 0 };
-    let ignore = if flags & HAS_IGNORE != 0 { Some(r.u16()?) } else { None };
-    let t_max = if flags & HAS_T_MAX != 0 { Some(r.i32()?) } else { None };
+    let credit = credit::Form::read((head & CREDIT_MASK) >> CREDIT_SHIFT, &mut r)?;
+    let class = if more & WIDE_CLASS != 0 { r.u16().filter(|&c| c > 0xff)? } else { u16::from(r.u8()?) };
+    let tag = if more & HAS_TAG != 0 { r.u16().filter(|&t| t != 0)? } else { 0 };
+    let ignore = if forms & HAS_IGNORE != 0 { Some(r.u16()?) } else { None };
+    let t_max = if more & HAS_T_MAX != 0 { Some(r.i32()?) } else { None };
     let best =
-        if flags & HAS_BEST != 0 { Some(HitMsg { t: r.i32()?, sphere: take_sphere(&mut r)? }) } else { None };
+        if more & HAS_BEST != 0 { Some(HitMsg { t: r.i32()?, sphere: take_sphere(&mut r)? }) } else { None };
     finish(
         RayMsg { origin, dir, cell, pixel, weight, credit, kind, depth, ignore, best, t_max, class, tag },
+        head & GRANTED != 0,
         r.bytes,
     )
 }
@@ -355,37 +451,44 @@ fn take_sphere(r: &mut Reader<'_>) -> Option<SphereMsg> {
     Some(SphereMsg { id, center, radius, material })
 }
 
-/// How long the ray whose flag bytes are `flags` and `forms` is on the
-/// wire, all of it: what a reader that cannot see the whole frame (serde's)
-/// must take. Flags no encoder writes give some length; the ray's decoder
-/// refuses them.
-fn wire_len(flags: u8, forms: u8) -> usize {
-    let has = |bit: u8, len: usize| if flags & bit != 0 { len } else { 0 };
-    let depth = usize::from(forms >> DEPTH_SHIFT == DEPTH_ESCAPE);
-    let origin = match (flags & AT_EYE != 0, forms & SHORT_ORIGIN != 0) {
-        (_, true) => 9,
-        (true, false) => 0,
-        (false, false) => 12,
+/// How long the ray whose header is `head`, `forms` and `more` (zero when
+/// `forms` has no [`MORE`]) is on the wire, all of it: what a reader that
+/// cannot see the whole frame (serde's) must take. Headers no encoder
+/// writes give some length; the ray's decoder refuses them.
+fn wire_len(head: u8, forms: u8, more: u8) -> usize {
+    let has = |set: u8, bit: u8, len: usize| if set & bit != 0 { len } else { 0 };
+    let depth = usize::from(head & DEPTH_MASK == DEPTH_ESCAPE);
+    let origin = match forms & ORIGIN_MASK {
+        ORIGIN_EYE => 0,
+        ORIGIN_PACKED => 8,
+        ORIGIN_SHORT => 9,
+        _ => 12,
     };
-    let cell_pixel = if forms & WIDE != 0 { 6 + 4 } else { 3 + 3 };
+    let dir = if forms & COMPACT_DIR != 0 { unit_dir::COMPACT_LEN } else { 12 };
+    let cells = match (forms & PACKED_CELLS != 0, more & WIDE_CELLS != 0) {
+        (true, _) => 4,
+        (false, false) => 6,
+        (false, true) => 10,
+    };
     let weights = match forms & WEIGHTS_MASK {
         WEIGHTS_SHORT => 6,
         WEIGHTS_LONG => 12,
         _ => 0,
     };
-    let credit = credit::Form::wire_len((forms & CREDIT_MASK) >> CREDIT_SHIFT);
-    let class = if flags & WIDE_CLASS != 0 { 2 } else { 1 };
-    2 + depth
+    let credit = credit::Form::wire_len((head & CREDIT_MASK) >> CREDIT_SHIFT);
+    let class = if more & WIDE_CLASS != 0 { 2 } else { 1 };
+    2 + has(forms, MORE, 1)
+        + depth
         + origin
-        + 12
-        + cell_pixel
+        + dir
+        + cells
         + weights
         + credit
         + class
-        + has(HAS_TAG, 2)
-        + has(HAS_IGNORE, 2)
-        + has(HAS_T_MAX, 4)
-        + has(HAS_BEST, 4 + SPHERE_LEN)
+        + has(more, HAS_TAG, 2)
+        + has(forms, HAS_IGNORE, 2)
+        + has(more, HAS_T_MAX, 4)
+        + has(more, HAS_BEST, 4 + SPHERE_LEN)
 }
 
 /// A ray is its wire form's bytes, one after another with no length before
@@ -415,12 +518,15 @@ impl<'de> Deserialize<'de> for RayMsg {
                 let mut buf = [0u8; RAY_MAX_LEN];
                 let mut next =
                     || seq.next_element::<u8>()?.ok_or_else(|| A::Error::custom("a ray cut short"));
-                let (flags, forms) = (next()?, next()?);
-                let len = wire_len(flags, forms);
+                let (head, forms) = (next()?, next()?);
+                let more = if forms & MORE != 0 { next()? } else { 0 };
+                let header = [head, forms, more];
+                let header = header.get(..if forms & MORE != 0 { 3 } else { 2 }).unwrap_or_default();
+                let len = wire_len(head, forms, more);
                 let bytes = buf.get_mut(..len).ok_or_else(|| A::Error::custom("not a ray"))?;
-                let (head, tail) =
-                    bytes.split_at_mut_checked(2).ok_or_else(|| A::Error::custom("not a ray"))?;
-                head.copy_from_slice(&[flags, forms]);
+                let (start, tail) =
+                    bytes.split_at_mut_checked(header.len()).ok_or_else(|| A::Error::custom("not a ray"))?;
+                start.copy_from_slice(header);
                 for byte in tail {
                     *byte = next()?;
                 }
@@ -452,6 +558,13 @@ mod tests {
     const CREDIT_LONG: u8 = 2 << CREDIT_SHIFT;
     const CREDIT_SCALED: u8 = 3 << CREDIT_SHIFT;
 
+    /// A unit direction as a node makes one: `d.d` just under 2^60.
+    fn unit() -> [i32; 3] {
+        let (a, b) = (-(1 << 28), 300_000_000);
+        let c = ((1u64 << 60) - (1 << 56) - 300_000_000u64.pow(2)).isqrt() as i32;
+        [a, b, c]
+    }
+
     fn ray() -> RayMsg {
         RayMsg {
             origin: [-5 << 16, 3, i32::MAX],
@@ -473,7 +586,9 @@ mod tests {
     fn primary() -> RayMsg {
         RayMsg {
             origin: ORIGIN_AT_EYE,
-            cell: [3, 200, 255],
+            dir: unit(),
+            cell: [3, 20, 31],
+            pixel: (1 << 17) - 1,
             weight: [FULL_WEIGHT; 3],
             credit: PIXEL_CREDIT,
             kind: RayKind::Primary,
@@ -485,73 +600,94 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_primary_ray_on_a_grant_takes_21_bytes() {
-        let mut buf = [0u8; RAY_MAX_LEN];
-        // Two flag bytes, 12 of direction, 3 of cell, 3 of pixel, 1 of class.
-        assert_eq!(encode_ray(&primary(), &mut buf), Some(2 + 12 + 3 + 3 + 1));
-        assert_eq!(decode_ray(&buf[..21]), Some(primary()));
+    /// A shadow ray as a hit in a 32-cube grid makes one.
+    fn shadow() -> RayMsg {
+        RayMsg {
+            origin: [0, (1 << 21) - 1, 5 << 16],
+            weight: [1000, 0, 32767],
+            credit: PIXEL_CREDIT / 4,
+            kind: RayKind::Shadow,
+            depth: 1,
+            ignore: Some(999),
+            ..primary()
+        }
     }
 
     #[test]
-    fn a_shadow_ray_from_a_sphere_in_the_grid_takes_three_bytes_an_origin_component() {
+    fn a_primary_ray_on_a_grant_takes_16_bytes() {
         let mut buf = [0u8; RAY_MAX_LEN];
-        let r = RayMsg {
-            origin: [0, (1 << 24) - 1, 5 << 16],
-            cell: [0, 255, 5],
-            credit: PIXEL_CREDIT / 3,
-            tag: 0,
-            ..ray()
-        };
-        // Flags, forms, origin 9, direction 12, cell 3, pixel 3, weights 6
-        // (one is over 2^15 but under 2^16), credit 4, class, ignore 2, t_max 4.
+        // Head and forms, 9 of direction, 4 of cells and pixel, 1 of class.
+        let p = primary();
+        assert_eq!(encode_outgoing(&OutgoingRay::of(&p, true), &mut buf), Some(2 + 9 + 4 + 1));
+        assert_eq!(buf[0], RAY | GRANTED);
+        let mut out = Message::Space;
+        assert_eq!(decode_ray_into(&buf[..16], &mut out, |rest| rest.is_empty().then_some(())), Some(()));
+        assert_eq!(out, Message::GrantedRay(p));
+        // A bare ray is never on a grant.
+        assert_eq!(decode_ray(&buf[..16]), None);
+        buf[0] &= !GRANTED;
+        assert_eq!(decode_ray(&buf[..16]), Some(p));
+    }
+
+    #[test]
+    fn a_shadow_ray_in_a_grid_of_32_takes_33_bytes() {
+        let mut buf = [0u8; RAY_MAX_LEN];
+        let r = shadow();
+        // Head, forms, origin 8, direction 9, cells and pixel 4, weights 6,
+        // credit 1, class 1, ignore 2.
         let n = encode_ray(&r, &mut buf).unwrap();
-        assert_eq!(n, 2 + 9 + 12 + 3 + 3 + 6 + 4 + 1 + 2 + 4);
-        assert_eq!(buf[2..11], [0, 0, 0, 0xff, 0xff, 0xff, 0, 0, 5]);
+        assert_eq!(n, 2 + 8 + 9 + 4 + 6 + 1 + 1 + 2);
+        let packed = u64::from_le_bytes(buf[2..10].try_into().unwrap());
+        assert_eq!(packed, ((1 << 21) - 1) << 21 | (5 << 16) << 42);
         assert_eq!(decode_ray(&buf[..n]), Some(r));
-        // One component at 2^24 or below zero, and the origin takes four bytes each.
-        for far in [1 << 24, -1] {
+        // One component at 2^21, and the origin takes three bytes each; at
+        // 2^24 or below zero, four.
+        for (far, len) in [(1 << 21, n + 1), (1 << 24, n + 4), (-1, n + 4)] {
             let r = RayMsg { origin: [0, far, 5 << 16], ..r };
-            assert_eq!(encode_ray(&r, &mut buf), Some(n + 3));
+            assert_eq!(encode_ray(&r, &mut buf), Some(len));
+            assert_eq!(decode_ray(&buf[..len]), Some(r));
         }
     }
 
     #[test]
     fn a_second_encoding_of_the_same_ray_is_refused() {
         let mut buf = [0u8; RAY_MAX_LEN];
-        let r = RayMsg { cell: [1, 2, 3], ..ray() };
+        let r = shadow();
         let n = encode_ray(&r, &mut buf).unwrap();
-        // The same ray with its cells and pixel written wide although they fit.
-        let mut wide = buf[..2 + 24].to_vec();
-        wide[1] |= WIDE;
-        for c in r.cell {
-            wide.extend_from_slice(&c.to_le_bytes());
+        // Its origin written three bytes a component although it packs.
+        let mut short = buf[..2].to_vec();
+        short[1] = short[1] & !ORIGIN_MASK | ORIGIN_SHORT;
+        for v in r.origin {
+            short.extend_from_slice(&three_bytes(v as u32));
         }
-        wide.extend_from_slice(&r.pixel.to_le_bytes());
-        wide.extend_from_slice(&buf[2 + 24 + 3 + 3..n]);
-        assert_eq!(decode_ray(&wide), None);
-        // An origin in the grid written long.
-        let g = RayMsg { origin: [1, 2, 3], ..r };
-        let n = encode_ray(&g, &mut buf).unwrap();
-        let mut long = buf[..2].to_vec();
-        long[1] &= !SHORT_ORIGIN;
-        for v in g.origin {
-            long.extend_from_slice(&v.to_le_bytes());
+        short.extend_from_slice(&buf[10..n]);
+        assert_eq!(decode_ray(&short), None);
+        // Its direction written whole although it is a unit vector.
+        let mut whole = buf[..10].to_vec();
+        whole[1] &= !COMPACT_DIR;
+        for v in r.dir {
+            whole.extend_from_slice(&v.to_le_bytes());
         }
-        long.extend_from_slice(&buf[2 + 9..n]);
-        assert_eq!(decode_ray(&long), None);
-        // Both at the eye and short.
-        let mut both = buf[..n].to_vec();
-        both[0] |= AT_EYE;
-        assert_eq!(decode_ray(&both), None);
-        both.drain(2..11);
-        assert_eq!(decode_ray(&both), None);
+        whole.extend_from_slice(&buf[19..n]);
+        assert_eq!(decode_ray(&whole), None);
+        // Its cells and pixel in six bytes although they pack.
+        let mut six = buf[..19].to_vec();
+        six[1] &= !PACKED_CELLS;
+        six.extend(r.cell.map(|c| c as u8));
+        six.extend_from_slice(&three_bytes(r.pixel));
+        six.extend_from_slice(&buf[23..n]);
+        assert_eq!(decode_ray(&six), None);
+        // A rarer-flags byte of zero.
+        let mut zero = buf[..n].to_vec();
+        zero[1] |= MORE;
+        zero.insert(2, 0);
+        assert_eq!(decode_ray(&zero), None);
         // A full-strength primary ray with its weights written out.
         let p = primary();
         let n = encode_ray(&p, &mut buf).unwrap();
         let mut long = buf[..n].to_vec();
         long[1] |= WEIGHTS_SHORT;
-        let at = 2 + 12 + 3 + 3;
+        let at = 2 + 9 + 4;
         for _ in 0..3 {
             long.splice(at..at, 32768u16.to_le_bytes());
         }
@@ -584,40 +720,98 @@ mod tests {
             0u64..1 << 33,
             any::<u64>()
         ];
+        let near = |limit: i32| limit - 2..limit + 2;
         let origin = prop_oneof![
             Just(ORIGIN_AT_EYE),
             proptest::array::uniform3(prop_oneof![Just(i32::MIN), any::<i32>()]),
-            // Short components, and some just out of the short form.
-            proptest::array::uniform3(prop_oneof![0i32..1 << 24, (1 << 24) - 2..(1 << 24) + 2, -2i32..2])
+            // Packed and short components, and some just out of either form.
+            proptest::array::uniform3(prop_oneof![0i32..1 << 21, near(1 << 21), -2i32..2]),
+            proptest::array::uniform3(prop_oneof![0i32..1 << 24, near(1 << 24), -2i32..2])
         ];
-        let pixel = prop_oneof![0u32..1 << 24, (1u32 << 24) - 2..(1 << 24) + 2, any::<u32>()];
+        // Unit directions as the nodes make them, with one component nudged
+        // or not, and any.
+        let dir = prop_oneof![
+            (-1e6f64..1e6, -1e6f64..1e6, -1e6f64..1e6, 0usize..3, -3i32..4).prop_map(
+                |(x, y, z, i, nudge)| {
+                    let len = (x * x + y * y + z * z).sqrt().max(1e-3);
+                    let mut d = [x, y, z].map(|c| (c / len * (1u64 << 30) as f64) as i32);
+                    d[i] = d[i].saturating_add(nudge);
+                    d
+                }
+            ),
+            proptest::array::uniform3(any::<i32>())
+        ];
+        let cell = prop_oneof![
+            proptest::array::uniform3(0u16..32),
+            proptest::array::uniform3(prop_oneof![30u16..34, 250u16..260, any::<u16>()])
+        ];
+        let pixel = prop_oneof![
+            0u32..1 << 17,
+            (1u32 << 17) - 2..(1 << 17) + 2,
+            0u32..1 << 24,
+            (1u32 << 24) - 2..(1 << 24) + 2,
+            any::<u32>()
+        ];
         (
-            proptest::array::uniform3(prop_oneof_weights()),
-            credit,
-            proptest::array::uniform3(prop_oneof![250u16..260, any::<u16>()]),
+            (proptest::array::uniform3(prop_oneof_weights()), credit, cell, dir),
             prop_oneof![250u16..260, any::<u16>()],
             prop_oneof![Just(0u16), any::<u16>()],
             prop_oneof![1u8..5, any::<u8>()],
             origin,
             proptest::option::of(any::<i32>()),
+            proptest::option::of(any::<u16>()),
             any::<bool>(),
             pixel,
         )
             .prop_map(
-                move |(weight, credit, cell, class, tag, depth, origin, t_max, best, pixel)| {
+                move |(
+                    (weight, credit, cell, dir),
+                    class,
+                    tag,
+                    depth,
+                    origin,
+                    t_max,
+                    ignore,
+                    best,
+                    pixel,
+                )| {
                     let best = best.then_some(HitMsg { t: -11, sphere });
-                    RayMsg { weight, credit, cell, class, tag, depth, origin, t_max, best, pixel, ..ray() }
+                    RayMsg {
+                        weight,
+                        credit,
+                        cell,
+                        dir,
+                        class,
+                        tag,
+                        depth,
+                        origin,
+                        t_max,
+                        ignore,
+                        best,
+                        pixel,
+                        ..ray()
+                    }
                 },
             )
     }
 
+    /// The length [`wire_len`] gives the header at the start of `bytes`.
+    fn wire_len_of(bytes: &[u8]) -> usize {
+        let more = if bytes[1] & MORE != 0 { bytes[2] } else { 0 };
+        wire_len(bytes[0], bytes[1], more)
+    }
+
     proptest::proptest! {
         #[test]
-        fn rays_round_trip_across_the_forms(r in arb_ray()) {
+        fn rays_round_trip_across_the_forms(r in arb_ray(), granted in proptest::bool::ANY) {
             let mut buf = [0u8; RAY_MAX_LEN];
-            let n = encode_ray(&r, &mut buf).unwrap();
-            proptest::prop_assert_eq!(decode_ray(&buf[..n]), Some(r));
-            proptest::prop_assert_eq!(wire_len(buf[0], buf[1]), n);
+            let n = encode_outgoing(&OutgoingRay::of(&r, granted), &mut buf).unwrap();
+            let mut out = Message::Space;
+            let taken = decode_ray_into(&buf[..n], &mut out, |rest| rest.is_empty().then_some(()));
+            proptest::prop_assert_eq!(taken, Some(()));
+            let want = if granted { Message::GrantedRay(r) } else { Message::Ray(r) };
+            proptest::prop_assert_eq!(out, want);
+            proptest::prop_assert_eq!(wire_len_of(&buf), n);
         }
 
         /// Through serde (postcard), a ray is its bytes with no length
@@ -645,7 +839,8 @@ mod tests {
     struct Forms {
         escaped_depth: bool,
         origin: Origin,
-        wide: bool,
+        compact_dir: bool,
+        cells: Cells,
         weights: u8,
         credit: u8,
         wide_class: bool,
@@ -655,8 +850,16 @@ mod tests {
     #[derive(Debug, Clone, Copy, PartialEq)]
     enum Origin {
         AtEye,
+        Packed,
         Short,
         Long,
+    }
+
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    enum Cells {
+        Packed,
+        Short,
+        Wide,
     }
 
     /// Every choice of forms whose fields `r`'s values fit, canonical or not.
@@ -667,26 +870,34 @@ mod tests {
             [WEIGHTS_FULL, WEIGHTS_SHORT, WEIGHTS_LONG],
             [CREDIT_PRIMARY, CREDIT_SHORT, CREDIT_LONG, CREDIT_SCALED],
         );
-        let origins = [Origin::AtEye, Origin::Short, Origin::Long];
-        // Two ways for four fields, three for two, four for one: 576 choices,
-        // by mixed radix.
-        (0..2 * 3 * 2 * 3 * 4 * 2 * 2)
+        let origins = [Origin::AtEye, Origin::Packed, Origin::Short, Origin::Long];
+        let cell_forms = [Cells::Packed, Cells::Short, Cells::Wide];
+        // Two ways for five fields, three for two, four for two: 4 608
+        // choices, by mixed radix.
+        (0..2 * 4 * 2 * 3 * 3 * 4 * 2 * 2)
             .map(|i: usize| Forms {
                 escaped_depth: i % 2 == 1,
-                origin: origins[i / 2 % 3],
-                wide: i / 6 % 2 == 1,
-                weights: weights[i / 12 % 3],
-                credit: credits[i / 36 % 4],
-                wide_class: i / 144 % 2 == 1,
-                tag: i / 288 % 2 == 1,
+                origin: origins[i / 2 % 4],
+                compact_dir: i / 8 % 2 == 1,
+                cells: cell_forms[i / 16 % 3],
+                weights: weights[i / 48 % 3],
+                credit: credits[i / 144 % 4],
+                wide_class: i / 576 % 2 == 1,
+                tag: i / 1152 % 2 == 1,
             })
             .filter(|f| f.escaped_depth || r.depth < DEPTH_ESCAPE)
             .filter(|f| match f.origin {
                 Origin::AtEye => r.origin == ORIGIN_AT_EYE,
+                Origin::Packed => r.origin.iter().all(|&c| (0..1 << 21).contains(&c)),
                 Origin::Short => r.origin.iter().all(|&c| (0..1 << 24).contains(&c)),
                 Origin::Long => true,
             })
-            .filter(|f| f.wide || (fits(&cells, 0xff) && r.pixel < 1 << 24))
+            .filter(|f| !f.compact_dir || compact_by_search(r.dir).is_some())
+            .filter(|f| match f.cells {
+                Cells::Packed => fits(&cells, 31) && r.pixel < 1 << 17,
+                Cells::Short => fits(&cells, 0xff) && r.pixel < 1 << 24,
+                Cells::Wide => true,
+            })
             .filter(|f| match f.weights {
                 WEIGHTS_FULL => r.weight == [FULL_WEIGHT; 3],
                 WEIGHTS_SHORT => fits(&r.weight, 0xffff),
@@ -714,37 +925,90 @@ mod tests {
         })
     }
 
+    /// The compact form of `d` as the module documents it, found in 128-bit
+    /// integers: the first largest left out, whose square root is one under
+    /// to two over it, the other two in 31 bits.
+    fn compact_by_search(d: [i32; 3]) -> Option<Vec<u8>> {
+        let mags = d.map(|c| i128::from(c).abs());
+        let m = (0..3).find(|&i| (0..3).all(|j| mags[j] < mags[i] || (mags[j] == mags[i] && j >= i)))?;
+        let rest: Vec<i128> = (0..3).filter(|&j| j != m).map(|j| i128::from(d[j])).collect();
+        if rest.iter().any(|&v| !(-(1 << 30)..1 << 30).contains(&v)) {
+            return None;
+        }
+        let n = (1i128 << 60) - rest[0] * rest[0] - rest[1] * rest[1];
+        let root = (0..=n.max(0)).contains(&n).then(|| (n as u128).isqrt() as i128)?;
+        let k = root - mags[m];
+        if !(-1..=2).contains(&k) {
+            return None;
+        }
+        let k = k + 1;
+        let bits = (rest[0] + (1 << 30)) as u128 | ((rest[1] + (1 << 30)) as u128) << 31 | (m as u128) << 62;
+        let last = (u128::from(d[m] < 0) | (k as u128) << 1) << 64;
+        Some((bits | last).to_le_bytes()[..9].to_vec())
+    }
+
     /// `r` written in the layout the module documents, in forms `f`: the
     /// decoder's oracle, built apart from the encoder's choice of forms.
     fn write_in(r: &RayMsg, f: Forms) -> Vec<u8> {
         let le =
             |v: &[u32], n: usize| v.iter().flat_map(|x| x.to_le_bytes()[..n].to_vec()).collect::<Vec<u8>>();
-        let mut flags = kind_bits(r.kind);
+        let depth = if f.escaped_depth { DEPTH_ESCAPE } else { r.depth };
+        let head = RAY | kind_bits(r.kind) | f.credit | depth;
+        let mut more = 0;
         for (set, bit) in [
-            (r.ignore.is_some(), HAS_IGNORE),
+            (f.tag, HAS_TAG),
             (r.best.is_some(), HAS_BEST),
             (r.t_max.is_some(), HAS_T_MAX),
-            (f.tag, HAS_TAG),
             (f.wide_class, WIDE_CLASS),
-            (f.origin == Origin::AtEye, AT_EYE),
+            (f.cells == Cells::Wide, WIDE_CELLS),
         ] {
-            flags |= if set { bit } else { 0 };
+            more |= if set { bit } else { 0 };
         }
-        let depth = if f.escaped_depth { DEPTH_ESCAPE } else { r.depth };
-        let wide = if f.wide { WIDE } else { 0 };
-        let short = if f.origin == Origin::Short { SHORT_ORIGIN } else { 0 };
-        let mut b = vec![flags, f.weights | f.credit | wide | short | depth << DEPTH_SHIFT];
+        let origin = match f.origin {
+            Origin::AtEye => ORIGIN_EYE,
+            Origin::Packed => ORIGIN_PACKED,
+            Origin::Short => ORIGIN_SHORT,
+            Origin::Long => ORIGIN_LONG,
+        };
+        let mut forms = f.weights | origin;
+        for (set, bit) in [
+            (f.compact_dir, COMPACT_DIR),
+            (r.ignore.is_some(), HAS_IGNORE),
+            (f.cells == Cells::Packed, PACKED_CELLS),
+            (more != 0, MORE),
+        ] {
+            forms |= if set { bit } else { 0 };
+        }
+        let mut b = vec![head, forms];
+        if more != 0 {
+            b.push(more);
+        }
         if f.escaped_depth {
             b.push(r.depth);
         }
+        let o = r.origin.map(|v| u64::from(v as u32));
         match f.origin {
             Origin::AtEye => {}
+            Origin::Packed => b.extend((o[0] + (o[1] << 21) + (o[2] << 42)).to_le_bytes()),
             Origin::Short => b.extend(le(&r.origin.map(|v| v as u32), 3)),
             Origin::Long => b.extend(le(&r.origin.map(|v| v as u32), 4)),
         }
-        b.extend(le(&r.dir.map(|v| v as u32), 4));
-        b.extend(le(&r.cell.map(u32::from), if f.wide { 2 } else { 1 }));
-        b.extend(le(&[r.pixel], if f.wide { 4 } else { 3 }));
+        match f.compact_dir {
+            true => b.extend(compact_by_search(r.dir).unwrap()),
+            false => b.extend(le(&r.dir.map(|v| v as u32), 4)),
+        }
+        let c = r.cell.map(u32::from);
+        match f.cells {
+            Cells::Packed => b.extend(le(&[c[0] + (c[1] << 5) + (c[2] << 10) + (r.pixel << 15)], 4)),
+            Cells::Short => {
+                b.extend(le(&c, 1));
+                b.extend(le(&[r.pixel], 3));
+            }
+            Cells::Wide => {
+                b.extend(le(&c, 2));
+                b.extend(le(&[r.pixel], 4));
+            }
+        }
         match f.weights {
             WEIGHTS_SHORT => b.extend(le(&r.weight, 2)),
             WEIGHTS_LONG => b.extend(le(&r.weight, 4)),
@@ -804,19 +1068,20 @@ mod tests {
     #[test]
     fn a_ray_unpacked_into_its_message_is_the_ray_and_a_bad_one_leaves_it_be() {
         let mut buf = [0u8; RAY_MAX_LEN];
-        let n = encode_ray(&ray(), &mut buf).unwrap();
+        let n = encode_outgoing(&OutgoingRay::of(&ray(), true), &mut buf).unwrap();
         buf[n..n + 2].copy_from_slice(&[7, 9]);
         let mut out = Message::Space;
         let rest = |after: &[u8]| Some(after.to_vec());
-        assert_eq!(decode_ray_into(&buf[..n + 2], true, &mut out, rest), Some(vec![7, 9]));
+        assert_eq!(decode_ray_into(&buf[..n + 2], &mut out, rest), Some(vec![7, 9]));
         assert_eq!(out, Message::GrantedRay(ray()));
-        assert_eq!(decode_ray_into(&buf[..n], false, &mut out, rest), Some(vec![]));
+        buf[0] &= !GRANTED;
+        assert_eq!(decode_ray_into(&buf[..n], &mut out, rest), Some(vec![]));
         assert_eq!(out, Message::Ray(ray()));
         // Cut short: refused, and the message is what it was.
-        assert_eq!(decode_ray_into(&buf[..n - 1], true, &mut out, rest), None);
+        assert_eq!(decode_ray_into(&buf[..n - 1], &mut out, rest), None);
         assert_eq!(out, Message::Ray(ray()));
         // What follows refused: so is the ray.
-        assert_eq!(decode_ray_into(&buf[..n + 2], true, &mut out, |_| None::<()>), None);
+        assert_eq!(decode_ray_into(&buf[..n + 2], &mut out, |_| None::<()>), None);
         assert_eq!(out, Message::Ray(ray()));
     }
 
@@ -833,5 +1098,11 @@ mod tests {
         let mut bad = buf;
         bad[1] |= 3;
         assert_eq!(decode_ray(&bad[..n]), None, "weight form 3 is no form");
+        let mut bad = buf;
+        bad[0] &= !RAY;
+        assert_eq!(decode_ray(&bad[..n]), None, "no ray's head");
+        let mut bad = buf;
+        bad[2] |= 1 << 5;
+        assert_eq!(decode_ray(&bad[..n]), None, "a rarer flag no ray has");
     }
 }

@@ -257,8 +257,8 @@ proptest! {
         prop_assert_eq!(decode_all(&mut dec, &bytes), vec![Ok(frame)]);
     }
 
-    /// A message kept in its wire form (a sender's window) is postcard's
-    /// serialization of it, and framed alone makes the message's frame.
+    /// A message kept in its wire form (a sender's window) is `wire`'s, and
+    /// framed alone makes the message's frame.
     #[test]
     fn a_message_kept_in_its_wire_form_frames_as_itself(frame in arb_frame()) {
         let mut bytes = [0u8; MAX_MESSAGE_LEN];
@@ -270,7 +270,7 @@ proptest! {
     }
 
     /// A ray packed from where a node keeps it, with a hop's changes beside
-    /// it, is postcard's serialization of the message it stands for, and
+    /// it, is the wire form of the message it stands for, and
     /// that message is the ray with those changes made.
     #[test]
     fn an_outgoing_ray_is_the_message_it_stands_for(
@@ -321,15 +321,25 @@ proptest! {
         }
     }
 
-    /// Every frame's payload is its postcard serialization, the trailer and
-    /// the CRC, whichever path wrote it (rays are packed without serde), and
-    /// a payload postcard wrote decodes to the frame.
+    /// Every frame's payload is its body (postcard's serialization, but for
+    /// a ray's message: see `wire`), the trailer and the CRC, whichever path
+    /// wrote it (rays are packed without serde), and such a payload decodes
+    /// to the frame. A ray's message as postcard writes it, its variant's
+    /// index before the ray, is a second encoding and is refused.
     #[test]
     fn a_frame_is_postcard_under_the_crc(frame in arb_frame(), ray in arb_ray(), granted in any::<bool>()) {
+        let msg = if granted { Message::GrantedRay(ray) } else { Message::Ray(ray) };
+        let as_postcard = postcard::to_slice(&(5u8, &msg), &mut [0u8; 256]).unwrap().to_vec();
+        prop_assert_eq!(
+            decode_all(&mut FrameDecoder::new(), &payload_frame(&as_postcard, &[])),
+            vec![Err(DecodeError::Body)]
+        );
+        let batch = [vec![5u8, 0x7F, 2], wire(&Message::Space), as_postcard[1..].to_vec()].concat();
+        let mut dec = FrameDecoder::new();
+        prop_assert_eq!(decode_all(&mut dec, &payload_frame(&batch, &[])), vec![Ok(Frame::new(5, Message::Space)), Err(DecodeError::Body)]);
         let ray_frame = Frame { msg: if granted { Message::GrantedRay(ray) } else { Message::Ray(ray) }, ..frame.clone() };
         for frame in [frame, ray_frame] {
-            let mut buf = [0u8; 256];
-            let body = postcard::to_slice(&(frame.seq, &frame.msg), &mut buf).unwrap().to_vec();
+            let body = body_of(frame.seq, &frame.msg);
             let trailer: Vec<u8> = frame.ack.into_iter().collect();
             let reference = payload_frame(&body, &trailer);
             prop_assert_eq!(encode(&frame), reference.clone());
@@ -341,8 +351,7 @@ proptest! {
     /// ray cut short, are refused.
     #[test]
     fn a_ray_body_with_bytes_out_of_place_is_refused(ray in arb_ray(), cut in 1usize..8, extra in 2usize..4) {
-        let mut buf = [0u8; 256];
-        let body = postcard::to_slice(&(3u8, Message::GrantedRay(ray)), &mut buf).unwrap().to_vec();
+        let body = body_of(3, &Message::GrantedRay(ray));
         let short = &body[..body.len() - cut.min(body.len() - 3)];
         prop_assert_eq!(decode_all(&mut FrameDecoder::new(), &payload_frame(short, &[])), vec![Err(DecodeError::Body)]);
         let long = vec![1u8; extra];
@@ -536,9 +545,28 @@ fn numbered(seq: Seq, msgs: &[Message]) -> Vec<(Seq, &Message)> {
     msgs.iter().enumerate().map(|(i, m)| (seq.wrapping_add(i as u8), m)).collect()
 }
 
-/// A message's wire form as postcard writes it.
+/// A message's wire form: as postcard writes it, but for a ray's, which is
+/// the ray's bare bytes as postcard writes them (with no variant index
+/// before them: the ray's head byte is the tag) and [`ray_wire::GRANTED`]
+/// set in that byte on a grant.
 fn wire(msg: &Message) -> Vec<u8> {
-    postcard::to_slice(msg, &mut [0u8; 512]).unwrap().to_vec()
+    let bare = |ray: &RayMsg| postcard::to_slice(ray, &mut [0u8; 512]).unwrap().to_vec();
+    match msg {
+        Message::Ray(ray) => bare(ray),
+        Message::GrantedRay(ray) => {
+            let mut bytes = bare(ray);
+            bytes[0] |= ray_wire::GRANTED;
+            bytes
+        }
+        _ => postcard::to_slice(msg, &mut [0u8; 512]).unwrap().to_vec(),
+    }
+}
+
+/// A frame's body: its sequence number, then its message's wire form.
+fn body_of(seq: Seq, msg: &Message) -> Vec<u8> {
+    let mut body = vec![seq];
+    body.extend(wire(msg));
+    body
 }
 
 /// `msgs` numbered from `seq` in their wire form, as a sender's window keeps them.
@@ -560,8 +588,8 @@ fn batch_frames(seq: Seq, msgs: &[Message], ack: Option<Seq>) -> Vec<Result<Fram
         .collect()
 }
 
-fn postcard_len(msg: &Message) -> usize {
-    postcard::to_slice(msg, &mut [0u8; 512]).unwrap().len()
+fn wire_len(msg: &Message) -> usize {
+    wire(msg).len()
 }
 
 proptest! {
@@ -582,7 +610,7 @@ proptest! {
         let mut out = [0u8; MAX_FRAME_LEN];
         let (n, taken) = encode_batch(borrowed(&encoded(seq, &msgs)), ack, &mut out).unwrap();
         let head = 3 + usize::from(ack.is_some());
-        let sizes: Vec<usize> = msgs.iter().map(postcard_len).collect();
+        let sizes: Vec<usize> = msgs.iter().map(wire_len).collect();
         let used: usize = head + sizes[..taken].iter().sum::<usize>() + 4;
         prop_assert!(taken >= 1 && (taken == 1 || used <= MAX_PAYLOAD_LEN));
         if let Some(next) = sizes.get(taken) {
