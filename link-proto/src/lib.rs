@@ -28,7 +28,6 @@ mod pack;
 pub mod ray_wire;
 pub mod retirements;
 pub mod site;
-pub mod unit_dir;
 
 pub use board::{BoardId, BoardInfo, BoardKind, ClockSource, FirmwareVersion, PeerNote};
 pub use frame::{

@@ -15,8 +15,10 @@
 //!   reflected or shadow ray's in a grid of up to 32 cubes: it starts on a
 //!   sphere the grid holds) takes 21 bits a component, eight bytes in all;
 //!   inside its first 256 cubes three bytes a component, else four;
-//! - a unit direction takes nine bytes, its largest component left out
-//!   ([`crate::unit_dir`]), any other twelve;
+//! - the direction takes twelve bytes, its components whole (left out, its
+//!   largest component could be put back from the other two with a square
+//!   root, three bytes fewer: that cost the two ends of a hop 135
+//!   instructions, more than the bytes spared; see docs/scaling.md);
 //! - cells under 32 and a pixel under 2^17 (every cell of a grid up to 32
 //!   cubes a side, every pixel of an image up to 362x362) take four bytes
 //!   together, cells under 256 and a pixel under 2^24 six, else ten;
@@ -46,7 +48,6 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use crate::credit;
 use crate::message::{HitMsg, MaterialMsg, Message, RayKind, RayMsg, SphereMsg};
 use crate::pack::{Reader, Writer};
-use crate::unit_dir;
 
 /// The origin a node writes for a primary ray that starts at the eye: the
 /// wire leaves it out, and the receiver puts its own eye back. Far outside
@@ -80,13 +81,13 @@ const ORIGIN_EYE: u8 = 0;
 const ORIGIN_PACKED: u8 = 1 << ORIGIN_SHIFT;
 const ORIGIN_SHORT: u8 = 2 << ORIGIN_SHIFT;
 const ORIGIN_LONG: u8 = 3 << ORIGIN_SHIFT;
-/// The direction in [`unit_dir`]'s nine bytes.
-const COMPACT_DIR: u8 = 1 << 4;
-const HAS_IGNORE: u8 = 1 << 5;
+const HAS_IGNORE: u8 = 1 << 4;
 /// Cells and pixel in four bytes.
-const PACKED_CELLS: u8 = 1 << 6;
+const PACKED_CELLS: u8 = 1 << 5;
 /// The byte of rarer flags follows.
-const MORE: u8 = 1 << 7;
+const MORE: u8 = 1 << 6;
+/// No ray has it.
+const FORMS_UNUSED: u8 = 1 << 7;
 
 // The byte of rarer flags: present, and not zero, only when one is set.
 const HAS_TAG: u8 = 1 << 0;
@@ -180,31 +181,41 @@ impl<'a> OutgoingRay<'a> {
 
 /// The origin's form.
 fn origin_form(origin: [i32; 3]) -> u8 {
-    if at_eye(origin) {
-        ORIGIN_EYE
-    } else if origin.iter().all(|&c| (c as u32) < PACKED_ORIGIN_LIMIT) {
+    // As unsigned, a component below zero is over every limit, as the eye's are.
+    let top = largest_u32(origin.map(|c| c as u32));
+    if top < PACKED_ORIGIN_LIMIT {
         ORIGIN_PACKED
-    } else if origin.iter().all(|&c| (c as u32) < SHORT_LIMIT) {
+    } else if top < SHORT_LIMIT {
         ORIGIN_SHORT
+    } else if at_eye(origin) {
+        ORIGIN_EYE
     } else {
         ORIGIN_LONG
     }
 }
 
+/// The largest of three, in two comparisons.
+fn largest_u32([x, y, z]: [u32; 3]) -> u32 {
+    x.max(y).max(z)
+}
+
 /// Cells and pixel in four bytes, if they fit.
 fn packed_cells(cell: [u16; 3], pixel: u32) -> bool {
-    cell.iter().all(|&c| c < PACKED_CELL_LIMIT) && pixel < PACKED_PIXEL_LIMIT
+    largest_u32(cell.map(u32::from)) < u32::from(PACKED_CELL_LIMIT) && pixel < PACKED_PIXEL_LIMIT
 }
 
 /// Cells and pixel in ten bytes: they fit no shorter form.
 fn wide_cells(cell: [u16; 3], pixel: u32) -> bool {
-    cell.iter().any(|&c| c > 0xff) || pixel >= SHORT_LIMIT
+    largest_u32(cell.map(u32::from)) > 0xff || pixel >= SHORT_LIMIT
 }
 
 /// The header bytes the encoder chooses for `out`, going with `origin`,
-/// whose credit takes `credit` and whose direction is compact or not.
-/// Each flag is its condition shifted into place, without a branch.
-fn header_of(out: &OutgoingRay<'_>, origin: [i32; 3], credit: credit::Form, compact: bool) -> [u8; 3] {
+/// whose credit takes `credit`.
+/// Each flag is its condition shifted into place, without a branch; in
+/// line, which spares a call's saved registers and spills (8 instructions
+/// of a hop end's 450 on a Cortex-M3).
+#[inline(always)]
+fn header_of(out: &OutgoingRay<'_>, origin: [i32; 3], credit: credit::Form) -> [u8; 3] {
     let ray = out.ray;
     let bit = |set: bool, bit: u8| u8::from(set) * bit;
     let head = RAY
@@ -226,7 +237,6 @@ fn header_of(out: &OutgoingRay<'_>, origin: [i32; 3], credit: credit::Form, comp
         | bit(wide_cells(ray.cell, ray.pixel), WIDE_CELLS);
     let forms = weights
         | origin_form(origin)
-        | bit(compact, COMPACT_DIR)
         | bit(ray.ignore.is_some(), HAS_IGNORE)
         | bit(packed_cells(ray.cell, ray.pixel), PACKED_CELLS)
         | bit(more != 0, MORE);
@@ -255,8 +265,7 @@ pub fn encode_outgoing(o: &OutgoingRay<'_>, out: &mut [u8]) -> Option<usize> {
     let ray = o.ray;
     let origin = o.origin();
     let credit = credit::Form::of(ray.credit);
-    let dir = unit_dir::compact(ray.dir);
-    let [head, forms, more] = header_of(o, origin, credit, dir.is_some());
+    let [head, forms, more] = header_of(o, origin, credit);
     let mut w = Writer::new(out);
     w.put(&[head, forms])?;
     if more != 0 {
@@ -282,13 +291,8 @@ pub fn encode_outgoing(o: &OutgoingRay<'_>, out: &mut [u8]) -> Option<usize> {
         }
         _ => {}
     }
-    match dir {
-        Some(bytes) => w.put(&bytes)?,
-        None => {
-            for v in ray.dir {
-                w.put(&v.to_le_bytes())?;
-            }
-        }
+    for v in ray.dir {
+        w.put(&v.to_le_bytes())?;
     }
     if forms & PACKED_CELLS != 0 {
         let [x, y, z] = ray.cell.map(u32::from);
@@ -380,13 +384,15 @@ pub fn decode_ray_into<T>(
 fn read_ray<T>(bytes: &[u8], finish: impl FnOnce(RayMsg, bool, &[u8]) -> Option<T>) -> Option<T> {
     let mut r = Reader { bytes };
     let head = r.u8().filter(|h| h & RAY != 0)?;
-    let forms = r.u8()?;
+    let forms = r.u8().filter(|f| f & FORMS_UNUSED == 0)?;
     let more = if forms & MORE != 0 { r.u8().filter(|&m| m != 0 && m & !MORE_BITS == 0)? } else { 0 };
     let kind = kind_of(head)?;
     let depth = match head & DEPTH_MASK {
         DEPTH_ESCAPE => r.u8().filter(|&d| d >= DEPTH_ESCAPE)?,
         d => d,
     };
+    // Each form is checked for the shorter forms its values would fit: a
+    // packed origin's fit no shorter one.
     let origin = match forms & ORIGIN_MASK {
         ORIGIN_EYE => ORIGIN_AT_EYE,
         ORIGIN_PACKED => {
@@ -396,17 +402,12 @@ fn read_ray<T>(bytes: &[u8], finish: impl FnOnce(RayMsg, bool, &[u8]) -> Option<
             }
             [v & LOW21, v >> 21 & LOW21, v >> 42].map(|c| c as i32)
         }
-        ORIGIN_SHORT => [r.u24()? as i32, r.u24()? as i32, r.u24()? as i32],
-        _ => r.i32x3()?,
+        ORIGIN_SHORT => Some([r.u24()?, r.u24()?, r.u24()?])
+            .filter(|&o| largest_u32(o) >= PACKED_ORIGIN_LIMIT)?
+            .map(|c| c as i32),
+        _ => r.i32x3().filter(|&o| origin_form(o) == ORIGIN_LONG)?,
     };
-    if origin_form(origin) != forms & ORIGIN_MASK {
-        return None;
-    }
-    let dir = if forms & COMPACT_DIR != 0 {
-        unit_dir::expand(&r.take()?)?
-    } else {
-        r.i32x3().filter(|&d| unit_dir::compact(d).is_none())?
-    };
+    let dir = r.i32x3()?;
     let (cell, pixel) = match (forms & PACKED_CELLS != 0, more & WIDE_CELLS != 0) {
         (true, false) => {
             let v = r.u32()?;
@@ -464,7 +465,6 @@ fn wire_len(head: u8, forms: u8, more: u8) -> usize {
         ORIGIN_SHORT => 9,
         _ => 12,
     };
-    let dir = if forms & COMPACT_DIR != 0 { unit_dir::COMPACT_LEN } else { 12 };
     let cells = match (forms & PACKED_CELLS != 0, more & WIDE_CELLS != 0) {
         (true, _) => 4,
         (false, false) => 6,
@@ -480,7 +480,7 @@ fn wire_len(head: u8, forms: u8, more: u8) -> usize {
     2 + has(forms, MORE, 1)
         + depth
         + origin
-        + dir
+        + 12
         + cells
         + weights
         + credit
@@ -614,29 +614,29 @@ mod tests {
     }
 
     #[test]
-    fn a_primary_ray_on_a_grant_takes_16_bytes() {
+    fn a_primary_ray_on_a_grant_takes_19_bytes() {
         let mut buf = [0u8; RAY_MAX_LEN];
-        // Head and forms, 9 of direction, 4 of cells and pixel, 1 of class.
+        // Head and forms, 12 of direction, 4 of cells and pixel, 1 of class.
         let p = primary();
-        assert_eq!(encode_outgoing(&OutgoingRay::of(&p, true), &mut buf), Some(2 + 9 + 4 + 1));
+        assert_eq!(encode_outgoing(&OutgoingRay::of(&p, true), &mut buf), Some(2 + 12 + 4 + 1));
         assert_eq!(buf[0], RAY | GRANTED);
         let mut out = Message::Space;
-        assert_eq!(decode_ray_into(&buf[..16], &mut out, |rest| rest.is_empty().then_some(())), Some(()));
+        assert_eq!(decode_ray_into(&buf[..19], &mut out, |rest| rest.is_empty().then_some(())), Some(()));
         assert_eq!(out, Message::GrantedRay(p));
         // A bare ray is never on a grant.
-        assert_eq!(decode_ray(&buf[..16]), None);
+        assert_eq!(decode_ray(&buf[..19]), None);
         buf[0] &= !GRANTED;
-        assert_eq!(decode_ray(&buf[..16]), Some(p));
+        assert_eq!(decode_ray(&buf[..19]), Some(p));
     }
 
     #[test]
-    fn a_shadow_ray_in_a_grid_of_32_takes_33_bytes() {
+    fn a_shadow_ray_in_a_grid_of_32_takes_36_bytes() {
         let mut buf = [0u8; RAY_MAX_LEN];
         let r = shadow();
-        // Head, forms, origin 8, direction 9, cells and pixel 4, weights 6,
+        // Head, forms, origin 8, direction 12, cells and pixel 4, weights 6,
         // credit 1, class 1, ignore 2.
         let n = encode_ray(&r, &mut buf).unwrap();
-        assert_eq!(n, 2 + 8 + 9 + 4 + 6 + 1 + 1 + 2);
+        assert_eq!(n, 2 + 8 + 12 + 4 + 6 + 1 + 1 + 2);
         let packed = u64::from_le_bytes(buf[2..10].try_into().unwrap());
         assert_eq!(packed, ((1 << 21) - 1) << 21 | (5 << 16) << 42);
         assert_eq!(decode_ray(&buf[..n]), Some(r));
@@ -662,20 +662,12 @@ mod tests {
         }
         short.extend_from_slice(&buf[10..n]);
         assert_eq!(decode_ray(&short), None);
-        // Its direction written whole although it is a unit vector.
-        let mut whole = buf[..10].to_vec();
-        whole[1] &= !COMPACT_DIR;
-        for v in r.dir {
-            whole.extend_from_slice(&v.to_le_bytes());
-        }
-        whole.extend_from_slice(&buf[19..n]);
-        assert_eq!(decode_ray(&whole), None);
         // Its cells and pixel in six bytes although they pack.
-        let mut six = buf[..19].to_vec();
+        let mut six = buf[..22].to_vec();
         six[1] &= !PACKED_CELLS;
         six.extend(r.cell.map(|c| c as u8));
         six.extend_from_slice(&three_bytes(r.pixel));
-        six.extend_from_slice(&buf[23..n]);
+        six.extend_from_slice(&buf[26..n]);
         assert_eq!(decode_ray(&six), None);
         // A rarer-flags byte of zero.
         let mut zero = buf[..n].to_vec();
@@ -687,7 +679,7 @@ mod tests {
         let n = encode_ray(&p, &mut buf).unwrap();
         let mut long = buf[..n].to_vec();
         long[1] |= WEIGHTS_SHORT;
-        let at = 2 + 9 + 4;
+        let at = 2 + 12 + 4;
         for _ in 0..3 {
             long.splice(at..at, 32768u16.to_le_bytes());
         }
@@ -839,7 +831,6 @@ mod tests {
     struct Forms {
         escaped_depth: bool,
         origin: Origin,
-        compact_dir: bool,
         cells: Cells,
         weights: u8,
         credit: u8,
@@ -872,18 +863,17 @@ mod tests {
         );
         let origins = [Origin::AtEye, Origin::Packed, Origin::Short, Origin::Long];
         let cell_forms = [Cells::Packed, Cells::Short, Cells::Wide];
-        // Two ways for five fields, three for two, four for two: 4 608
+        // Two ways for three fields, three for two, four for two: 2 304
         // choices, by mixed radix.
-        (0..2 * 4 * 2 * 3 * 3 * 4 * 2 * 2)
+        (0..2 * 4 * 3 * 3 * 4 * 2 * 2)
             .map(|i: usize| Forms {
                 escaped_depth: i % 2 == 1,
                 origin: origins[i / 2 % 4],
-                compact_dir: i / 8 % 2 == 1,
-                cells: cell_forms[i / 16 % 3],
-                weights: weights[i / 48 % 3],
-                credit: credits[i / 144 % 4],
-                wide_class: i / 576 % 2 == 1,
-                tag: i / 1152 % 2 == 1,
+                cells: cell_forms[i / 8 % 3],
+                weights: weights[i / 24 % 3],
+                credit: credits[i / 72 % 4],
+                wide_class: i / 288 % 2 == 1,
+                tag: i / 576 % 2 == 1,
             })
             .filter(|f| f.escaped_depth || r.depth < DEPTH_ESCAPE)
             .filter(|f| match f.origin {
@@ -892,7 +882,6 @@ mod tests {
                 Origin::Short => r.origin.iter().all(|&c| (0..1 << 24).contains(&c)),
                 Origin::Long => true,
             })
-            .filter(|f| !f.compact_dir || compact_by_search(r.dir).is_some())
             .filter(|f| match f.cells {
                 Cells::Packed => fits(&cells, 31) && r.pixel < 1 << 17,
                 Cells::Short => fits(&cells, 0xff) && r.pixel < 1 << 24,
@@ -925,28 +914,6 @@ mod tests {
         })
     }
 
-    /// The compact form of `d` as the module documents it, found in 128-bit
-    /// integers: the first largest left out, whose square root is one under
-    /// to two over it, the other two in 31 bits.
-    fn compact_by_search(d: [i32; 3]) -> Option<Vec<u8>> {
-        let mags = d.map(|c| i128::from(c).abs());
-        let m = (0..3).find(|&i| (0..3).all(|j| mags[j] < mags[i] || (mags[j] == mags[i] && j >= i)))?;
-        let rest: Vec<i128> = (0..3).filter(|&j| j != m).map(|j| i128::from(d[j])).collect();
-        if rest.iter().any(|&v| !(-(1 << 30)..1 << 30).contains(&v)) {
-            return None;
-        }
-        let n = (1i128 << 60) - rest[0] * rest[0] - rest[1] * rest[1];
-        let root = (0..=n.max(0)).contains(&n).then(|| (n as u128).isqrt() as i128)?;
-        let k = root - mags[m];
-        if !(-1..=2).contains(&k) {
-            return None;
-        }
-        let k = k + 1;
-        let bits = (rest[0] + (1 << 30)) as u128 | ((rest[1] + (1 << 30)) as u128) << 31 | (m as u128) << 62;
-        let last = (u128::from(d[m] < 0) | (k as u128) << 1) << 64;
-        Some((bits | last).to_le_bytes()[..9].to_vec())
-    }
-
     /// `r` written in the layout the module documents, in forms `f`: the
     /// decoder's oracle, built apart from the encoder's choice of forms.
     fn write_in(r: &RayMsg, f: Forms) -> Vec<u8> {
@@ -971,12 +938,9 @@ mod tests {
             Origin::Long => ORIGIN_LONG,
         };
         let mut forms = f.weights | origin;
-        for (set, bit) in [
-            (f.compact_dir, COMPACT_DIR),
-            (r.ignore.is_some(), HAS_IGNORE),
-            (f.cells == Cells::Packed, PACKED_CELLS),
-            (more != 0, MORE),
-        ] {
+        for (set, bit) in
+            [(r.ignore.is_some(), HAS_IGNORE), (f.cells == Cells::Packed, PACKED_CELLS), (more != 0, MORE)]
+        {
             forms |= if set { bit } else { 0 };
         }
         let mut b = vec![head, forms];
@@ -993,10 +957,7 @@ mod tests {
             Origin::Short => b.extend(le(&r.origin.map(|v| v as u32), 3)),
             Origin::Long => b.extend(le(&r.origin.map(|v| v as u32), 4)),
         }
-        match f.compact_dir {
-            true => b.extend(compact_by_search(r.dir).unwrap()),
-            false => b.extend(le(&r.dir.map(|v| v as u32), 4)),
-        }
+        b.extend(le(&r.dir.map(|v| v as u32), 4));
         let c = r.cell.map(u32::from);
         match f.cells {
             Cells::Packed => b.extend(le(&[c[0] + (c[1] << 5) + (c[2] << 10) + (r.pixel << 15)], 4)),
@@ -1101,6 +1062,9 @@ mod tests {
         let mut bad = buf;
         bad[0] &= !RAY;
         assert_eq!(decode_ray(&bad[..n]), None, "no ray's head");
+        let mut bad = buf;
+        bad[1] |= FORMS_UNUSED;
+        assert_eq!(decode_ray(&bad[..n]), None, "a form no ray has");
         let mut bad = buf;
         bad[2] |= 1 << 5;
         assert_eq!(decode_ray(&bad[..n]), None, "a rarer flag no ray has");

@@ -68,15 +68,14 @@ impl Default for CostModel {
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (eight frames on a board): one end of a hop (the ray in
     /// its compact wire form, packed from where the node keeps it, the reply carrying the ray's ack, the reply's
-    /// ack alone every eighth reply) 1 450.2, and of a ray reply with its ack
-    /// alone every eighth time 474.1, which stands for every short message; a
-    /// ray end is charged the difference, 976 (the UART's bytes are the link
+    /// ack alone every eighth reply) 1 319.8, and of a ray reply with its ack
+    /// alone every eighth time 473.0, which stands for every short message; a
+    /// ray end is charged the difference, 847 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every eighth ray) 1 032.4; of one in a batch of four in one frame
-    /// 861.3. The rays are half primaries from the eye,
+    /// every eighth ray) 886.5; of one in a batch of four in one frame
+    /// 737.4. The rays are half primaries from the eye,
     /// half reflections from inside the grid with half their pixel's credit
-    /// (34.0 bytes a frame; their directions' largest components, left out
-    /// of the wire, cost about 135 of its instructions to leave out and put back). A node's end of a retirement (the host's acks
+    /// (37.0 bytes a frame). A node's end of a retirement (the host's acks
     /// taken) 1 082.7 with one record, 2 738.7 with six: 331 a further record.
     /// A piece of the occupancy map taken (256 cubes, a quarter marked) 270.1.
     fn default() -> Self {
@@ -89,10 +88,10 @@ impl Default for CostModel {
             trace: 280,
             shade: 7_048,
             create: 2_803,
-            ray_message: 976,
-            granted_ray: 1_032,
-            batched_ray: 861,
-            short_message: 474,
+            ray_message: 847,
+            granted_ray: 887,
+            batched_ray: 737,
+            short_message: 473,
             retire_message: 1_083,
             retire_record: 331,
             map_take: 270,
