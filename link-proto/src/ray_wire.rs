@@ -492,7 +492,7 @@ fn wire_len(head: u8, forms: u8, more: u8) -> usize {
 }
 
 /// A ray is its wire form's bytes, one after another with no length before
-/// them (as a tuple, which postcard writes so): its flags say how many.
+/// them (as a tuple, which postcard writes so): its header says how many.
 impl Serialize for RayMsg {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         use serde::ser::SerializeTuple;
