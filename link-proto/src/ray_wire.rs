@@ -558,13 +558,6 @@ mod tests {
     const CREDIT_LONG: u8 = 2 << CREDIT_SHIFT;
     const CREDIT_SCALED: u8 = 3 << CREDIT_SHIFT;
 
-    /// A unit direction as a node makes one: `d.d` just under 2^60.
-    fn unit() -> [i32; 3] {
-        let (a, b) = (-(1 << 28), 300_000_000);
-        let c = ((1u64 << 60) - (1 << 56) - 300_000_000u64.pow(2)).isqrt() as i32;
-        [a, b, c]
-    }
-
     fn ray() -> RayMsg {
         RayMsg {
             origin: [-5 << 16, 3, i32::MAX],
@@ -586,7 +579,6 @@ mod tests {
     fn primary() -> RayMsg {
         RayMsg {
             origin: ORIGIN_AT_EYE,
-            dir: unit(),
             cell: [3, 20, 31],
             pixel: (1 << 17) - 1,
             weight: [FULL_WEIGHT; 3],
@@ -720,19 +712,6 @@ mod tests {
             proptest::array::uniform3(prop_oneof![0i32..1 << 21, near(1 << 21), -2i32..2]),
             proptest::array::uniform3(prop_oneof![0i32..1 << 24, near(1 << 24), -2i32..2])
         ];
-        // Unit directions as the nodes make them, with one component nudged
-        // or not, and any.
-        let dir = prop_oneof![
-            (-1e6f64..1e6, -1e6f64..1e6, -1e6f64..1e6, 0usize..3, -3i32..4).prop_map(
-                |(x, y, z, i, nudge)| {
-                    let len = (x * x + y * y + z * z).sqrt().max(1e-3);
-                    let mut d = [x, y, z].map(|c| (c / len * (1u64 << 30) as f64) as i32);
-                    d[i] = d[i].saturating_add(nudge);
-                    d
-                }
-            ),
-            proptest::array::uniform3(any::<i32>())
-        ];
         let cell = prop_oneof![
             proptest::array::uniform3(0u16..32),
             proptest::array::uniform3(prop_oneof![30u16..34, 250u16..260, any::<u16>()])
@@ -745,7 +724,7 @@ mod tests {
             any::<u32>()
         ];
         (
-            (proptest::array::uniform3(prop_oneof_weights()), credit, cell, dir),
+            (proptest::array::uniform3(prop_oneof_weights()), credit, cell),
             prop_oneof![250u16..260, any::<u16>()],
             prop_oneof![Just(0u16), any::<u16>()],
             prop_oneof![1u8..5, any::<u8>()],
@@ -756,23 +735,12 @@ mod tests {
             pixel,
         )
             .prop_map(
-                move |(
-                    (weight, credit, cell, dir),
-                    class,
-                    tag,
-                    depth,
-                    origin,
-                    t_max,
-                    ignore,
-                    best,
-                    pixel,
-                )| {
+                move |((weight, credit, cell), class, tag, depth, origin, t_max, ignore, best, pixel)| {
                     let best = best.then_some(HitMsg { t: -11, sphere });
                     RayMsg {
                         weight,
                         credit,
                         cell,
-                        dir,
                         class,
                         tag,
                         depth,
