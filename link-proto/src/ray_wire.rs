@@ -11,6 +11,10 @@
 //!   the message's tag as well, with a bit for a ray passed on a grant;
 //! - a primary ray's origin is the eye, which every node knows: a node
 //!   sends [`ORIGIN_AT_EYE`] in its place and it takes no bytes;
+//! - a primary ray in its usual form (from the eye, at full strength with
+//!   its pixel's whole credit, cells and pixel packed, nothing rarer, a class
+//!   under 16) is its head byte, its direction and its cells: 17 bytes, its
+//!   class in the head where other rays have their credit's form and depth;
 //! - any other origin inside the grid's first 32 cubes a side (every
 //!   reflected or shadow ray's in a grid of up to 32 cubes: it starts on a
 //!   sphere the grid holds) takes 21 bits a component, eight bytes in all;
@@ -38,7 +42,8 @@
 //! are not the encoder's choice for some ray are refused, never read as
 //! something else.
 //!
-//! Layout: head, forms, \[more\], \[depth\], \[origin\], direction, cells and
+//! Layout: head, direction, packed cells and pixel for a usual primary;
+//! for every other ray head, forms, \[more\], \[depth\], \[origin\], direction, cells and
 //! pixel, \[weights\], \[credit\], class, \[tag\], then `ignore` (u16),
 //! `t_max` (i32) and `best` (t as i32, then the sphere) when present.
 
@@ -69,6 +74,14 @@ const DEPTH_MASK: u8 = 0b11;
 /// 2 (a primary ray, its shadow rays, one reflection and its shadow rays)
 /// are most of the traffic.
 const DEPTH_ESCAPE: u8 = 3;
+/// The fourth kind code: a primary ray in its usual form (see
+/// [`usual_primary`]), its head byte alone before its direction and its
+/// packed cells, with its class in the four bits that hold the credit's form
+/// and the depth of every other ray.
+const USUAL_PRIMARY: u8 = 3 << KIND_SHIFT;
+const USUAL_CLASS_MASK: u8 = 0b1111;
+/// Classes the usual primary's head holds: under this.
+const USUAL_CLASS_LIMIT: u16 = 16;
 
 // The forms byte.
 const WEIGHTS_MASK: u8 = 0b11;
@@ -243,6 +256,18 @@ fn header_of(out: &OutgoingRay<'_>, origin: [i32; 3], credit: credit::Form) -> [
     [head, forms, more]
 }
 
+/// Whether a ray whose header the encoder chose as `head` and `forms`, of
+/// class `class`, goes as a usual primary: a primary ray (kind code 0) with
+/// its pixel's whole credit (credit code 0) at depth 0 (the head's low six
+/// bits all zero), from the eye at full strength with no ignored sphere and
+/// its cells packed, nothing rarer (the forms byte nothing but
+/// [`PACKED_CELLS`]), and a class under 16: half the rays a node of the
+/// paper's 4x4x4 array passes. Two bytes fewer than the other forms.
+#[inline(always)]
+fn usual_primary(head: u8, forms: u8, class: u16) -> bool {
+    head & !(RAY | GRANTED) == 0 && forms == PACKED_CELLS && class < USUAL_CLASS_LIMIT
+}
+
 /// The low three bytes of `v`.
 fn three_bytes(v: u32) -> [u8; 3] {
     let [a, b, c, _] = v.to_le_bytes();
@@ -267,6 +292,12 @@ pub fn encode_outgoing(o: &OutgoingRay<'_>, out: &mut [u8]) -> Option<usize> {
     let credit = credit::Form::of(ray.credit);
     let [head, forms, more] = header_of(o, origin, credit);
     let mut w = Writer::new(out);
+    if usual_primary(head, forms, o.class) {
+        w.put(&[head | USUAL_PRIMARY | o.class as u8])?;
+        put_direction(&mut w, ray.dir)?;
+        put_packed_cells(&mut w, ray)?;
+        return Some(w.at);
+    }
     w.put(&[head, forms])?;
     if more != 0 {
         w.put(&[more])?;
@@ -291,12 +322,9 @@ pub fn encode_outgoing(o: &OutgoingRay<'_>, out: &mut [u8]) -> Option<usize> {
         }
         _ => {}
     }
-    for v in ray.dir {
-        w.put(&v.to_le_bytes())?;
-    }
+    put_direction(&mut w, ray.dir)?;
     if forms & PACKED_CELLS != 0 {
-        let [x, y, z] = ray.cell.map(u32::from);
-        w.put(&(x | y << 5 | z << 10 | ray.pixel << 15).to_le_bytes())?;
+        put_packed_cells(&mut w, ray)?;
     } else if more & WIDE_CELLS != 0 {
         for c in ray.cell {
             w.put(&c.to_le_bytes())?;
@@ -333,6 +361,27 @@ pub fn encode_outgoing(o: &OutgoingRay<'_>, out: &mut [u8]) -> Option<usize> {
         put_sphere(&mut w, &best.sphere)?;
     }
     Some(w.at)
+}
+
+#[inline(always)]
+fn put_direction(w: &mut Writer<'_>, dir: [i32; 3]) -> Option<()> {
+    for v in dir {
+        w.put(&v.to_le_bytes())?;
+    }
+    Some(())
+}
+
+/// Cells and pixel in four bytes ([`packed_cells`] says whether they fit).
+#[inline(always)]
+fn put_packed_cells(w: &mut Writer<'_>, ray: &RayMsg) -> Option<()> {
+    let [x, y, z] = ray.cell.map(u32::from);
+    w.put(&(x | y << 5 | z << 10 | ray.pixel << 15).to_le_bytes())
+}
+
+/// Cells and pixel from their four packed bytes.
+#[inline(always)]
+fn unpack_cells(v: u32) -> ([u16; 3], u32) {
+    ([v & 0x1f, v >> 5 & 0x1f, v >> 10 & 0x1f].map(|c| c as u16), v >> 15)
 }
 
 fn put_sphere(w: &mut Writer<'_>, s: &SphereMsg) -> Option<()> {
@@ -384,6 +433,26 @@ pub fn decode_ray_into<T>(
 fn read_ray<T>(bytes: &[u8], finish: impl FnOnce(RayMsg, bool, &[u8]) -> Option<T>) -> Option<T> {
     let mut r = Reader { bytes };
     let head = r.u8().filter(|h| h & RAY != 0)?;
+    if head & KIND_MASK == USUAL_PRIMARY {
+        let dir = r.i32x3()?;
+        let (cell, pixel) = unpack_cells(r.u32()?);
+        let ray = RayMsg {
+            origin: ORIGIN_AT_EYE,
+            dir,
+            cell,
+            pixel,
+            weight: [FULL_WEIGHT; 3],
+            credit: PIXEL_CREDIT,
+            kind: RayKind::Primary,
+            depth: 0,
+            ignore: None,
+            best: None,
+            t_max: None,
+            class: u16::from(head & USUAL_CLASS_MASK),
+            tag: 0,
+        };
+        return finish(ray, head & GRANTED != 0, r.bytes);
+    }
     let forms = r.u8().filter(|f| f & FORMS_UNUSED == 0)?;
     let more = if forms & MORE != 0 { r.u8().filter(|&m| m != 0 && m & !MORE_BITS == 0)? } else { 0 };
     let kind = kind_of(head)?;
@@ -409,10 +478,7 @@ fn read_ray<T>(bytes: &[u8], finish: impl FnOnce(RayMsg, bool, &[u8]) -> Option<
     };
     let dir = r.i32x3()?;
     let (cell, pixel) = match (forms & PACKED_CELLS != 0, more & WIDE_CELLS != 0) {
-        (true, false) => {
-            let v = r.u32()?;
-            ([v & 0x1f, v >> 5 & 0x1f, v >> 10 & 0x1f].map(|c| c as u16), v >> 15)
-        }
+        (true, false) => unpack_cells(r.u32()?),
         (false, false) => Some(([u16::from(r.u8()?), u16::from(r.u8()?), u16::from(r.u8()?)], r.u24()?))
             .filter(|&(c, p)| !packed_cells(c, p))?,
         (false, true) => {
@@ -429,6 +495,10 @@ fn read_ray<T>(bytes: &[u8], finish: impl FnOnce(RayMsg, bool, &[u8]) -> Option<
     };
     let credit = credit::Form::read((head & CREDIT_MASK) >> CREDIT_SHIFT, &mut r)?;
     let class = if more & WIDE_CLASS != 0 { r.u16().filter(|&c| c > 0xff)? } else { u16::from(r.u8()?) };
+    if usual_primary(head, forms, class) {
+        // The usual primary's own form is the only one it has.
+        return None;
+    }
     let tag = if more & HAS_TAG != 0 { r.u16().filter(|&t| t != 0)? } else { 0 };
     let ignore = if forms & HAS_IGNORE != 0 { Some(r.u16()?) } else { None };
     let t_max = if more & HAS_T_MAX != 0 { Some(r.i32()?) } else { None };
@@ -453,10 +523,14 @@ fn take_sphere(r: &mut Reader<'_>) -> Option<SphereMsg> {
 }
 
 /// How long the ray whose header is `head`, `forms` and `more` (zero when
-/// `forms` has no [`MORE`]) is on the wire, all of it: what a reader that
+/// `forms` has no [`MORE`], both zero for a usual primary, which has
+/// neither) is on the wire, all of it: what a reader that
 /// cannot see the whole frame (serde's) must take. Headers no encoder
 /// writes give some length; the ray's decoder refuses them.
 fn wire_len(head: u8, forms: u8, more: u8) -> usize {
+    if head & KIND_MASK == USUAL_PRIMARY {
+        return 1 + 12 + 4;
+    }
     let has = |set: u8, bit: u8, len: usize| if set & bit != 0 { len } else { 0 };
     let depth = usize::from(head & DEPTH_MASK == DEPTH_ESCAPE);
     let origin = match forms & ORIGIN_MASK {
@@ -518,10 +592,17 @@ impl<'de> Deserialize<'de> for RayMsg {
                 let mut buf = [0u8; RAY_MAX_LEN];
                 let mut next =
                     || seq.next_element::<u8>()?.ok_or_else(|| A::Error::custom("a ray cut short"));
-                let (head, forms) = (next()?, next()?);
-                let more = if forms & MORE != 0 { next()? } else { 0 };
+                let head = next()?;
+                let (forms, header_len) = match head & KIND_MASK {
+                    USUAL_PRIMARY => (0, 1),
+                    _ => match next()? {
+                        forms if forms & MORE != 0 => (forms, 3),
+                        forms => (forms, 2),
+                    },
+                };
+                let more = if header_len == 3 { next()? } else { 0 };
                 let header = [head, forms, more];
-                let header = header.get(..if forms & MORE != 0 { 3 } else { 2 }).unwrap_or_default();
+                let header = header.get(..header_len).unwrap_or_default();
                 let len = wire_len(head, forms, more);
                 let bytes = buf.get_mut(..len).ok_or_else(|| A::Error::custom("not a ray"))?;
                 let (start, tail) =
@@ -606,19 +687,31 @@ mod tests {
     }
 
     #[test]
-    fn a_primary_ray_on_a_grant_takes_19_bytes() {
+    fn a_usual_primary_ray_on_a_grant_takes_17_bytes() {
+        let mut buf = [0u8; RAY_MAX_LEN];
+        // The head with the class in it, 12 of direction, 4 of cells and pixel.
+        let p = RayMsg { class: 11, ..primary() };
+        assert_eq!(encode_outgoing(&OutgoingRay::of(&p, true), &mut buf), Some(1 + 12 + 4));
+        assert_eq!(buf[0], RAY | GRANTED | 3 << KIND_SHIFT | 11);
+        let mut out = Message::Space;
+        assert_eq!(decode_ray_into(&buf[..17], &mut out, |rest| rest.is_empty().then_some(())), Some(()));
+        assert_eq!(out, Message::GrantedRay(p));
+        // A bare ray is never on a grant.
+        assert_eq!(decode_ray(&buf[..17]), None);
+        buf[0] &= !GRANTED;
+        assert_eq!(decode_ray(&buf[..17]), Some(p));
+    }
+
+    #[test]
+    fn a_primary_ray_of_class_16_or_more_takes_19_bytes() {
         let mut buf = [0u8; RAY_MAX_LEN];
         // Head and forms, 12 of direction, 4 of cells and pixel, 1 of class.
-        let p = primary();
+        let p = RayMsg { class: 16, ..primary() };
         assert_eq!(encode_outgoing(&OutgoingRay::of(&p, true), &mut buf), Some(2 + 12 + 4 + 1));
-        assert_eq!(buf[0], RAY | GRANTED);
+        assert_eq!(buf[..2], [RAY | GRANTED, PACKED_CELLS]);
         let mut out = Message::Space;
         assert_eq!(decode_ray_into(&buf[..19], &mut out, |rest| rest.is_empty().then_some(())), Some(()));
         assert_eq!(out, Message::GrantedRay(p));
-        // A bare ray is never on a grant.
-        assert_eq!(decode_ray(&buf[..19]), None);
-        buf[0] &= !GRANTED;
-        assert_eq!(decode_ray(&buf[..19]), Some(p));
     }
 
     #[test]
@@ -676,10 +769,68 @@ mod tests {
             long.splice(at..at, 32768u16.to_le_bytes());
         }
         assert_eq!(decode_ray(&long), None);
+        // A usual primary written in the other forms' layout.
+        let p = RayMsg { class: 15, ..primary() };
+        let n = encode_ray(&p, &mut buf).unwrap();
+        assert_eq!(n, 17);
+        let mut plain = vec![RAY, PACKED_CELLS];
+        plain.extend_from_slice(&buf[1..n]);
+        plain.push(15);
+        assert_eq!(decode_ray(&plain), None);
+        plain[18] = 16;
+        assert_eq!(decode_ray(&plain), Some(RayMsg { class: 16, ..p }));
+    }
+
+    /// Rays with every field on both sides of its forms' limits, and
+    /// primary rays in or one field out of the usual primary's form.
+    fn arb_ray() -> impl proptest::strategy::Strategy<Value = RayMsg> {
+        proptest::prop_oneof![arb_any_ray(), arb_primary()]
+    }
+
+    fn sphere() -> SphereMsg {
+        SphereMsg {
+            id: 7,
+            center: [1, -2, 3],
+            radius: 9,
+            material: MaterialMsg {
+                color: [1, 2, 3],
+                ambient: 4,
+                diffuse: 5,
+                specular: 6,
+                shininess: 7,
+                reflect: 8,
+            },
+        }
+    }
+
+    /// Primary rays of any direction, cells and pixel in the packed form's
+    /// range, classes on both sides of 16, and at most one other field
+    /// away from the usual primary's.
+    fn arb_primary() -> impl proptest::strategy::Strategy<Value = RayMsg> {
+        use proptest::prelude::*;
+        let cell = proptest::array::uniform3(0u16..32);
+        (any::<[i32; 3]>(), cell, 0u32..1 << 17, 0u16..20, 0u8..12).prop_map(
+            |(dir, cell, pixel, class, off)| {
+                let p = RayMsg { dir, cell, pixel, class, ..primary() };
+                match off {
+                    0 => RayMsg { depth: 1, ..p },
+                    1 => RayMsg { credit: PIXEL_CREDIT / 2, ..p },
+                    2 => RayMsg { weight: [FULL_WEIGHT, FULL_WEIGHT, 32767], ..p },
+                    3 => RayMsg { ignore: Some(3), ..p },
+                    4 => RayMsg { tag: 5, ..p },
+                    5 => RayMsg { t_max: Some(77), ..p },
+                    6 => RayMsg { best: Some(HitMsg { t: 4, sphere: sphere() }), ..p },
+                    7 => RayMsg { origin: [1, 2, 3], ..p },
+                    8 => RayMsg { cell: [32, 0, 0], ..p },
+                    9 => RayMsg { kind: RayKind::Reflected, ..p },
+                    _ => p,
+                }
+            },
+        )
     }
 
     /// Rays with every field on both sides of its forms' limits.
-    fn arb_ray() -> impl proptest::strategy::Strategy<Value = RayMsg> {
+    fn arb_any_ray() -> impl proptest::strategy::Strategy<Value = RayMsg> {
         use proptest::prelude::*;
         let sphere = SphereMsg {
             id: 7,
@@ -757,6 +908,9 @@ mod tests {
 
     /// The length [`wire_len`] gives the header at the start of `bytes`.
     fn wire_len_of(bytes: &[u8]) -> usize {
+        if bytes[0] & KIND_MASK == USUAL_PRIMARY {
+            return wire_len(bytes[0], 0, 0);
+        }
         let more = if bytes[1] & MORE != 0 { bytes[2] } else { 0 };
         wire_len(bytes[0], bytes[1], more)
     }
@@ -972,15 +1126,39 @@ mod tests {
         b
     }
 
+    /// `r` in the usual primary's layout, if it is one: the head (kind
+    /// code 3, the class in its low four bits), the direction, the packed
+    /// cells and pixel.
+    fn usual_writing(r: &RayMsg) -> Option<Vec<u8>> {
+        let usual = r.kind == RayKind::Primary
+            && r.origin == ORIGIN_AT_EYE
+            && r.weight == [FULL_WEIGHT; 3]
+            && r.credit == PIXEL_CREDIT
+            && r.depth == 0
+            && (r.ignore, r.t_max, r.best, r.tag) == (None, None, None, 0)
+            && r.cell.iter().all(|&c| c < 32)
+            && r.pixel < 1 << 17
+            && r.class < 16;
+        if !usual {
+            return None;
+        }
+        let c = r.cell.map(u32::from);
+        let mut b = vec![RAY | 3 << KIND_SHIFT | r.class as u8];
+        b.extend(r.dir.iter().flat_map(|d| d.to_le_bytes()));
+        b.extend((c[0] + (c[1] << 5) + (c[2] << 10) + (r.pixel << 15)).to_le_bytes());
+        Some(b)
+    }
+
     proptest::proptest! {
-        #![proptest_config(proptest::test_runner::Config::with_cases(128))]
+        #![proptest_config(proptest::test_runner::Config::with_cases(256))]
         /// Of all the ways to write a ray, the decoder takes exactly one,
         /// the encoder's.
         #[test]
         fn a_ray_decodes_from_exactly_one_writing(r in arb_ray()) {
             let mut buf = [0u8; RAY_MAX_LEN];
             let n = encode_ray(&r, &mut buf).unwrap();
-            let writings = forms_fitting(&r).into_iter().map(|f| write_in(&r, f));
+            let usual = usual_writing(&r).into_iter();
+            let writings = forms_fitting(&r).into_iter().map(|f| write_in(&r, f)).chain(usual);
             let taken: Vec<Vec<u8>> = writings.filter(|w| decode_ray(w).is_some()).collect();
             proptest::prop_assert_eq!(taken, vec![buf[..n].to_vec()]);
         }
@@ -1023,7 +1201,8 @@ mod tests {
         assert_eq!(decode_ray(&buf[..n + 1]), None);
         let mut bad = buf;
         bad[0] |= 3 << KIND_SHIFT;
-        assert_eq!(decode_ray(&bad[..n]), None, "kind 3 is no kind");
+        assert_eq!(decode_ray(&bad[..n]), None, "kind code 3 is a usual primary, 17 bytes");
+        assert!(decode_ray(&bad[..17]).is_some());
         let mut bad = buf;
         bad[1] |= 3;
         assert_eq!(decode_ray(&bad[..n]), None, "weight form 3 is no form");
