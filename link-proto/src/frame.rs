@@ -1,12 +1,16 @@
-//! Framing: `0x00 ++ COBS(mask(postcard(frame) ++ [ack] ++ crc32c_le)) ++ 0x00`,
-//! the payload XORed with [`MASK`] before it is stuffed.
+//! Framing: `COBS(mask(postcard(frame) ++ [ack] ++ crc32c_le)) ++ 0x00`, the
+//! payload XORed with [`MASK`] before it is stuffed.
 //!
 //! `ack` is the optional piggybacked acknowledgement ([`Frame::ack`]), one
 //! byte ([`Seq`]) after the body: present exactly when bytes remain between
 //! the body and the CRC.
 //!
-//! The leading zero means a frame cut short by a lost byte run damages only
-//! itself: the next frame starts clean. The CRC sits inside the COBS payload, so a
+//! A frame ends at its zero and the next begins after it: one delimiter a
+//! frame, as PPP's HDLC-like framing needs one flag between two frames (RFC
+//! 1662). A leading zero as well would cost every frame a byte (a twentieth
+//! of a ray's frame) to spare the frame after a lost delimiter or a burst of
+//! line noise: the CRC refuses the run the two make, and the reliable
+//! channel sends it again. The CRC sits inside the COBS payload, so a
 //! corrupted byte anywhere (including one that COBS decodes without complaint) is
 //! caught. [`FrameDecoder`] never panics and resynchronises on the next zero byte
 //! after garbage, a truncated frame or an oversize one.
@@ -31,8 +35,8 @@ const CRC_LEN: usize = 4;
 /// a byte more than its trailer).
 pub const MAX_PAYLOAD_LEN: usize = Frame::POSTCARD_MAX_SIZE + CRC_LEN;
 
-/// Largest encoded frame on the wire, both zero delimiters included.
-pub const MAX_FRAME_LEN: usize = cobs::max_encoding_length(MAX_PAYLOAD_LEN) + 2;
+/// Largest encoded frame on the wire, its zero delimiter included.
+pub const MAX_FRAME_LEN: usize = cobs::max_encoding_length(MAX_PAYLOAD_LEN) + 1;
 
 // Fixed buffers on a 64 KiB MCU: keep frames small. And short of COBS's
 // first 254-byte run, so frames are stuffed in place.
@@ -62,8 +66,8 @@ pub enum DecodeError {
 
 /// Encodes `frame` into `out`, returning the number of bytes written.
 ///
-/// The payload is written straight into `out` after the leading delimiter and
-/// a slot for the first COBS code byte, then stuffed in place: no scratch
+/// The payload is written straight into `out` after a slot for the first
+/// COBS code byte, then stuffed in place: no scratch
 /// buffer to clear and no copy, which a node pays for on every message.
 #[inline]
 pub fn encode_frame(frame: &Frame, out: &mut [u8]) -> Result<usize, EncodeError> {
@@ -149,14 +153,14 @@ pub fn encode_batch<'m>(
     Ok((seal(out, len)?, usize::from(count)))
 }
 
-/// Where a frame's payload goes in `out = [0, code, payload.., 0]`: at most
+/// Where a frame's payload goes in `out = [code, payload.., 0]`: at most
 /// what is left of `out`, and at most [`MAX_PAYLOAD_LEN`].
 fn payload_room(out: &mut [u8]) -> Result<&mut [u8], EncodeError> {
-    let room = out.len().saturating_sub(3).min(MAX_PAYLOAD_LEN);
-    out.get_mut(2..2 + room).ok_or(EncodeError::BufferTooSmall)
+    let room = out.len().saturating_sub(2).min(MAX_PAYLOAD_LEN);
+    out.get_mut(1..1 + room).ok_or(EncodeError::BufferTooSmall)
 }
 
-/// Appends the CRC to the `body_len` bytes of body at `out[2..]`, stuffs
+/// Appends the CRC to the `body_len` bytes of body at `out[1..]`, stuffs
 /// them in place and delimits the frame; its length on the wire.
 fn seal(out: &mut [u8], body_len: usize) -> Result<usize, EncodeError> {
     const SMALL: EncodeError = EncodeError::BufferTooSmall;
@@ -165,7 +169,7 @@ fn seal(out: &mut [u8], body_len: usize) -> Result<usize, EncodeError> {
     let payload_len = body_len + CRC_LEN;
     let crc = crc ^ crc_mask(body_len);
     payload.get_mut(body_len..payload_len).ok_or(SMALL)?.copy_from_slice(&crc.to_le_bytes());
-    let stuffed = out.get_mut(1..2 + payload_len).ok_or(SMALL)?;
+    let stuffed = out.get_mut(..1 + payload_len).ok_or(SMALL)?;
     if body_zeros || cobs::zero_bytes(crc) != 0 {
         // MAX_PAYLOAD_LEN bounds the payload well under COBS's in-place limit.
         cobs::encode_in_place(stuffed).ok_or(SMALL)?;
@@ -173,9 +177,8 @@ fn seal(out: &mut [u8], body_len: usize) -> Result<usize, EncodeError> {
         // No zero to stuff: the one code byte spans the payload.
         *stuffed.first_mut().ok_or(SMALL)? = (payload_len + 1) as u8;
     }
-    *out.first_mut().ok_or(SMALL)? = 0;
-    *out.get_mut(2 + payload_len).ok_or(SMALL)? = 0;
-    Ok(payload_len + 3)
+    *out.get_mut(1 + payload_len).ok_or(SMALL)? = 0;
+    Ok(payload_len + 2)
 }
 
 /// What a frame's payload (body, trailer and CRC) is XORed with on the
@@ -373,9 +376,9 @@ impl FrameDecoder {
             self.again = Batch::NONE;
         }
         while let Some((&first, after)) = bytes.split_first() {
-            // A frame's leading delimiter with nothing before it: skipped at
-            // once (every frame has one; found and closed as an empty frame,
-            // it cost a tenth of a received ray frame's framing).
+            // A zero with nothing before it, an empty frame (a sender may
+            // open a frame with one, as PPP does after an idle line):
+            // skipped at once.
             if first == 0 && self.len == 0 && !self.discarding {
                 *bytes = after;
                 continue;

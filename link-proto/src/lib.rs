@@ -41,4 +41,4 @@ pub use site::{Found, Site};
 
 /// Version of the wire protocol; nodes and host exchange it in [`Hello`].
 /// Bump it whenever a message changes shape (postcard carries no field names).
-pub const PROTOCOL_VERSION: u16 = 28;
+pub const PROTOCOL_VERSION: u16 = 29;

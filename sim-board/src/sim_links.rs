@@ -36,8 +36,8 @@ pub struct Waiting {
 }
 
 /// Bytes a message's frame of its own takes beyond what it adds to a batch:
-/// two delimiters, the first COBS code, the sequence number and the CRC.
-const FRAME_ALONE: u64 = 8;
+/// its delimiter, the first COBS code, the sequence number and the CRC.
+const FRAME_ALONE: u64 = 7;
 /// Bytes a batch's head adds to its first message's frame: its tag and count.
 const BATCH_HEAD: u64 = 2;
 
