@@ -250,14 +250,33 @@ mod tests {
         port.waiting = Some(Waiting { start: 100, len: 40, count: 1, this_poll: false });
         assert_eq!(port.join(40, 100), None, "on the wire from 100: too late");
         port.waiting = Some(Waiting { start: 100, len: 40, count: 1, this_poll: true });
-        assert_eq!(port.join(40, 100), Some(34), "sent by the same poll: one batch");
+        assert_eq!(port.join(40, 100), Some(35), "sent by the same poll: one batch");
         port.waiting = Some(Waiting { start: 100, len: 40, count: 1, this_poll: false });
-        // A frame's 8 bytes spared; the first to join adds the batch's head.
-        assert_eq!(port.join(40, 99), Some(34));
-        assert_eq!(port.join(40, 99), Some(32));
+        // A frame's 7 bytes spared; the first to join adds the batch's head.
+        assert_eq!(port.join(40, 99), Some(35));
+        assert_eq!(port.join(40, 99), Some(33));
         while port.join(40, 99).is_some() {}
         let w = port.waiting.unwrap();
-        assert!(w.len <= MAX_FRAME_LEN as u64 && w.len + 32 > MAX_FRAME_LEN as u64, "{w:?}");
-        assert_eq!(w.count as u64, 1 + (w.len - 40 - 2) / 32);
+        assert!(w.len <= MAX_FRAME_LEN as u64 && w.len + 33 > MAX_FRAME_LEN as u64, "{w:?}");
+        assert_eq!(w.count as u64, 1 + (w.len - 40 - 2) / 33);
+    }
+
+    /// What joining charges is what `encode_batch` writes: the first
+    /// message's frame, the batch's head, then each further message's frame
+    /// less a frame's own bytes.
+    #[test]
+    fn a_batch_costs_what_the_frame_encoder_writes() {
+        let grants = [Message::Grant(3), Message::Grant(90), Message::Space, Message::Ack(7)];
+        let mut wire = [[0u8; link_proto::MAX_MESSAGE_LEN]; 4];
+        let lens: Vec<usize> =
+            grants.iter().zip(&mut wire).map(|(m, w)| link_proto::encode_message(m, w).unwrap()).collect();
+        let messages: Vec<(u8, &[u8])> =
+            wire.iter().zip(&lens).zip(0u8..).map(|((w, &n), k)| (k, &w[..n])).collect();
+        let mut out = [0u8; MAX_FRAME_LEN];
+        let (len, count) = link_proto::encode_batch(messages.iter().copied(), None, &mut out).unwrap();
+        assert_eq!(count, 4);
+        let alone: Vec<u64> = grants.iter().map(|m| frame_len(m) as u64).collect();
+        let charged = alone[0] + BATCH_HEAD + alone[1..].iter().map(|a| a - FRAME_ALONE).sum::<u64>();
+        assert_eq!(len as u64, charged);
     }
 }
