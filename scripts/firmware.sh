@@ -131,6 +131,7 @@ check_cost() {
 check_cost cube_walk "$(model cube_step)"
 check_cost clear_walk "$(model clear_step)"
 check_cost clear_look "$(model clear_look)"
+check_cost ignore_look "$(model ignore_look)"
 check_cost map_take "$(model map_take)"
 check_cost sphere_test "$(model sphere_test)"
 check_cost sphere_hit "$(($(model sphere_test) + $(model sphere_hit)))"

@@ -242,6 +242,14 @@ impl<const S: usize, const R: usize, const C: usize> Subregion<S, R, C> {
         self.spheres.get(at)
     }
 
+    /// Whether a ray that ignores sphere `id` no longer needs to: this node
+    /// holds the sphere, and a walk from `cell` along `dir` has every cube
+    /// that lists it behind ([`crate::cube_box::leaves_behind`]). A node
+    /// that does not hold it cannot tell, and keeps the ray as it is.
+    pub fn left_behind(&self, id: u16, cell: [i32; 3], dir: [i32; 3]) -> bool {
+        self.sphere(id).is_some_and(|s| crate::cube_box::leaves_behind(s, cell, dir))
+    }
+
     /// Sphere references over all cubes.
     pub fn ref_count(&self) -> usize {
         self.ref_total

@@ -12,6 +12,9 @@ pub struct CostModel {
     pub clear_step: u64,
     /// Looking whether a leaving ray is near enough the grid's end to walk it on.
     pub clear_look: u64,
+    /// Looking whether a leaving ray still needs the sphere it ignores
+    /// ([`node_fw::Subregion::left_behind`]).
+    pub ignore_look: u64,
     /// One ray/sphere test.
     pub sphere_test: u64,
     /// What a test that meets its sphere ahead costs beyond a miss: the
@@ -57,7 +60,8 @@ impl Default for CostModel {
     /// `qemu-system-arm -icount shift=0`): a walked cube (step and inside
     /// test) 109.1; a cube walked on through the occupancy map (from ten cubes
     /// before the grid's end, the call and its look included) 174.1, and a
-    /// look that finds the end too far 101.0; a sphere test over a
+    /// look that finds the end too far 101.0; a look at whether a leaving ray
+    /// still needs the sphere it ignores (32 spheres held) 141.3; a sphere test over a
     /// mostly-missing list 211.0, and one that meets its sphere ahead 1 525.7
     /// (the root and the depth: 1 307 more); a walk's
     /// set-up (the received ray's line checked, the walk resumed) 279.7; a
@@ -83,6 +87,7 @@ impl Default for CostModel {
             cube_step: 109,
             clear_step: 174,
             clear_look: 101,
+            ignore_look: 141,
             sphere_test: 213,
             sphere_hit: 1_307,
             trace: 280,
@@ -122,6 +127,7 @@ impl CostModel {
             compute: u64::from(w.cube_steps) * self.cube_step
                 + u64::from(w.clear_steps) * self.clear_step
                 + u64::from(w.clear_looks) * self.clear_look
+                + u64::from(w.ignore_looks) * self.ignore_look
                 + u64::from(w.sphere_tests) * self.sphere_test
                 + u64::from(w.sphere_hits) * self.sphere_hit
                 + u64::from(w.shades) * self.shade
@@ -262,6 +268,7 @@ mod tests {
             cube_step: 114,
             clear_step: 170,
             clear_look: 95,
+            ignore_look: 150,
             sphere_test: 224,
             sphere_hit: 1_290,
             trace: 440,
@@ -280,6 +287,7 @@ mod tests {
             cube_steps: 7,
             clear_steps: 4,
             clear_looks: 2,
+            ignore_looks: 3,
             sphere_tests: 3,
             sphere_hits: 2,
             traces: 2,
@@ -295,7 +303,7 @@ mod tests {
             map_messages: 1,
         };
         let split = c.split(&w);
-        assert_eq!(split.compute, 7 * 114 + 4 * 170 + 2 * 95 + 3 * 224 + 2 * 1_290 + 7_186 + 2_924);
+        assert_eq!(split.compute, 7 * 114 + 4 * 170 + 2 * 95 + 3 * 150 + 3 * 224 + 2 * 1_290 + 7_186 + 2_924);
         assert_eq!(split.setup, 2 * 440);
         assert_eq!(split.messaging, 2 * 1_545 + 1_872 + 4 * 984 + 2 * 1_603 + 3 * 462 + 301);
         assert_eq!(split.total(), c.charge(&w));

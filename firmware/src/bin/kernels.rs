@@ -24,7 +24,7 @@ use node_fw::digital_line::wire_cell;
 use node_fw::occupancy::Occupancy;
 use node_fw::reliable::Channel;
 use node_fw::shading::{Scene, Surface};
-use node_fw::{DigitalLine, Direction, Grid, Line, Point, Sphere};
+use node_fw::{CubeBox, DigitalLine, Direction, Grid, Line, Point, Sphere, Subregion};
 
 /// Nanoseconds (instructions) per timer tick.
 const NS_PER_TICK: u64 = 40;
@@ -170,6 +170,48 @@ fn clear_looks(timer: &mut Timer) -> (u64, u64) {
         for (l, walk) in walks.iter_mut().flatten() {
             let mut taken = 0;
             core::hint::black_box(map.walk_clear(l, walk, &grid, None, &mut taken));
+            looks += 1;
+        }
+    }
+    (timer.ticks() - start, looks)
+}
+
+/// Looking whether a leaving ray still needs the sphere it ignores
+/// (`Subregion::left_behind`): a node's box of 8^3 cubes holding 32
+/// spheres (about what a node of the paper's 4x4x4 array holds), a ray
+/// leaving from beside each, half of them with the sphere behind it. Per look.
+#[inline(never)]
+fn ignore_looks(timer: &mut Timer, rng: &mut Lcg) -> (u64, u64) {
+    let Ok(grid) = Grid::new([32; 3]) else { return (0, 0) };
+    let mut region = Subregion::<32, 1024, 512>::new();
+    if region.assign(grid, CubeBox { lo: [0; 3], hi: [8; 3] }).is_err() {
+        return (0, 0);
+    }
+    let material = MaterialMsg {
+        color: [20_000; 3],
+        ambient: 8_000,
+        diffuse: 20_000,
+        specular: 10_000,
+        shininess: 8,
+        reflect: 0,
+    };
+    let mut leaving = heapless::Vec::<(u16, [i32; 3], [i32; 3]), 32>::new();
+    for id in 0..32u16 {
+        let radius = 16_384 + rng.below(1 << 16) as i32;
+        let center = [0; 3].map(|_| (1 << 16) + rng.below(6 << 16) as i32);
+        let Ok(s) = Sphere::from_msg(&SphereMsg { id: id * 31, center, radius, material }, &grid) else {
+            continue;
+        };
+        let _ = region.insert(s);
+        // Two cubes beyond the sphere's, going on away from it or coming back.
+        let cell = [(center[0] >> 16) + 3, center[1] >> 16, center[2] >> 16];
+        let dir = if id % 2 == 0 { [1 << 29, 1 << 28, -(1 << 28)] } else { [-(1 << 29), 1 << 28, 1 << 28] };
+        let _ = leaving.push((id * 31, cell, dir));
+    }
+    let (mut looks, start) = (0u64, timer.ticks());
+    for _ in 0..50 {
+        for &(id, cell, dir) in &leaving {
+            core::hint::black_box(region.left_behind(core::hint::black_box(id), cell, dir));
             looks += 1;
         }
     }
@@ -683,6 +725,8 @@ fn main() -> ! {
     let _ = writeln!(out, "kernel clear_walk {} {steps}", per_unit_x100(ticks, steps));
     let (ticks, looks) = clear_looks(&mut timer);
     let _ = writeln!(out, "kernel clear_look {} {looks}", per_unit_x100(ticks, looks));
+    let (ticks, looks) = ignore_looks(&mut timer, &mut Lcg(4242));
+    let _ = writeln!(out, "kernel ignore_look {} {looks}", per_unit_x100(ticks, looks));
     let (ticks, taken) = map_takes(&mut timer, &mut Lcg(777));
     let _ = writeln!(out, "kernel map_take {} {taken}", per_unit_x100(ticks, taken));
 

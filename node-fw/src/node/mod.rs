@@ -86,6 +86,9 @@ pub struct Work {
     pub sphere_tests: u32,
     /// Of those, the tests that met their sphere ahead (the hit's depth computed).
     pub sphere_hits: u32,
+    /// Leaving rays that ignore a sphere, looked at to see whether they
+    /// still need to ([`crate::Subregion::left_behind`]).
+    pub ignore_looks: u32,
     /// Ray walks through the subregion.
     pub traces: u32,
     /// Hits shaded (children evaluated).

@@ -102,6 +102,14 @@ impl<const S: usize, const R: usize, const C: usize, const P: usize, const O: us
         let stage = match outcome {
             Outcome::Leave => {
                 ray.cell = leaves_at.map(|c| c as u16);
+                // The sphere a secondary ray leaves from goes with it (two
+                // bytes a hop) only while a cube ahead may list it.
+                if let Some(id) = ray.ignore {
+                    work.ignore_looks += 1;
+                    if self.region.left_behind(id, leaves_at, ray.dir) {
+                        ray.ignore = None;
+                    }
+                }
                 match route::toward(&self.region.owned(), leaves_at, self.driving_axis()) {
                     Some(port) => self.leave_by(port, ray.class),
                     None => return self.fail_at(ErrorCode::BadRay, ray.pixel, Site::LeavesTowardNoNeighbour),
