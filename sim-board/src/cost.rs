@@ -72,14 +72,15 @@ impl Default for CostModel {
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (eight frames on a board): one end of a hop (the ray in
     /// its compact wire form, packed from where the node keeps it, the reply carrying the ray's ack, the reply's
-    /// ack alone every eighth reply) 1 319.8, and of a ray reply with its ack
-    /// alone every eighth time 473.0, which stands for every short message; a
-    /// ray end is charged the difference, 847 (the UART's bytes are the link
+    /// ack alone every eighth reply) 1 221.9, and of a ray reply with its ack
+    /// alone every eighth time 464.8, which stands for every short message; a
+    /// ray end is charged the difference, 757 (the UART's bytes are the link
     /// model's). One end of a hop on a grant (the ray, and an ack alone for
-    /// every eighth ray) 886.5; of one in a batch of four in one frame
-    /// 737.4. The rays are half primaries from the eye,
-    /// half reflections from inside the grid with half their pixel's credit
-    /// (37.0 bytes a frame). A node's end of a retirement (the host's acks
+    /// every eighth ray) 798.5; of one in a batch of four in one frame
+    /// 655.5. The rays are as the paper's 32^3 grid has them: half usual
+    /// primaries from the eye, half reflections from inside the grid with
+    /// half their pixel's credit, half of those naming the sphere they leave
+    /// (33.0 bytes a frame). A node's end of a retirement (the host's acks
     /// taken) 1 082.7 with one record, 2 738.7 with six: 331 a further record.
     /// A piece of the occupancy map taken (256 cubes, a quarter marked) 270.1.
     fn default() -> Self {
@@ -93,10 +94,10 @@ impl Default for CostModel {
             trace: 280,
             shade: 7_048,
             create: 2_803,
-            ray_message: 847,
-            granted_ray: 887,
-            batched_ray: 737,
-            short_message: 473,
+            ray_message: 757,
+            granted_ray: 799,
+            batched_ray: 656,
+            short_message: 465,
             retire_message: 1_083,
             retire_record: 331,
             map_take: 270,

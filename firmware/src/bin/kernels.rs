@@ -393,15 +393,20 @@ fn shadings(timer: &mut Timer, grid: &Grid, spheres: &[Sphere]) -> (u64, u64) {
     (ticks, shaded)
 }
 
-/// Rays as nodes pass them: every other one a primary ray from the eye
-/// (which the wire leaves out, as a node does), the rest reflections from
-/// a point in the primary's cube (as a real reflection starts on a sphere in
-/// the grid) with part of its weight and half its credit (as a hit splits it).
+/// Rays as nodes of the paper's 32^3 grid pass them: every other one a
+/// primary ray from the eye (which the wire leaves out, as a node does) on
+/// its third hop, the rest reflections from a point in the primary's cube
+/// (as a real reflection starts on a sphere in the grid) with part of its
+/// weight and half its credit (as a hit splits it), half of them still
+/// naming the sphere they leave (as on their first hop). Their cubes are taken
+/// modulo 32 (the kernels' grid is 256 cubes a side), so that each ray
+/// takes the wire form it would have in the paper's grid.
 fn wire_rays(primaries: &[RayMsg]) -> heapless::Vec<RayMsg, 64> {
     let mut out = heapless::Vec::new();
     for (k, ray) in primaries.iter().enumerate() {
+        let ray = RayMsg { cell: ray.cell.map(|c| c % 32), ..*ray };
         let ray = if k % 2 == 0 {
-            RayMsg { origin: ORIGIN_AT_EYE, credit: PIXEL_CREDIT, ..*ray }
+            RayMsg { origin: ORIGIN_AT_EYE, credit: PIXEL_CREDIT, class: 3, ..ray }
         } else {
             RayMsg {
                 origin: ray.cell.map(|c| (i32::from(c) << 16) + 12_345),
@@ -409,7 +414,8 @@ fn wire_rays(primaries: &[RayMsg]) -> heapless::Vec<RayMsg, 64> {
                 weight: [20_000, 15_000, 9_000],
                 credit: PIXEL_CREDIT / 2,
                 depth: 1,
-                ..*ray
+                ignore: (k % 4 == 1).then_some(417),
+                ..ray
             }
         };
         let _ = out.push(ray);
