@@ -70,8 +70,9 @@ fn surface_range(c: i64, r: i64) -> (i64, i64) {
 }
 
 /// Whether a walk from `cell` along `dir` has every cube that lists `sphere`
-/// behind it: on some axis `cell` lies past the sphere's cubes
-/// ([`surface_range`]) and the walk moves that way or not at all along it,
+/// behind it: on some axis `cell` lies past the cubes from `first` to `last`
+/// that [`CubeBox::for_each_surface_cube`] searches for the sphere (those
+/// with `k <= c + r` and `k + 1 >= c - r`), and the walk moves that way or not at all along it,
 /// as a digital line's cell moves along each axis only in its direction's
 /// sign. Then no node's cube the walk goes on to lists the sphere, so a ray
 /// leaving it need not name it to be ignored: every test it meets is the same.
