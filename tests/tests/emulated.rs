@@ -148,8 +148,8 @@ fn a_3x3x3_stm32_array_matches_the_in_memory_board() {
 /// about what the emulated board spends (instructions on the emulated
 /// Cortex-M3, cycles on the in-memory board: the same unit under `-icount
 /// shift=0`). An emulated node's passes depend on when bytes arrive, so one
-/// run's busiest node varies by a few percent: measured 2.28e6-2.44e6
-/// instructions over 5 runs, charged 2.45e6 (+7.6% on their median; the
+/// run's busiest node varies by a few percent: measured 2.25e6-2.32e6
+/// instructions over 5 runs, charged 2.43e6 (+6.4% on their median; the
 /// loop's pass is chosen between two frames' fits, see
 /// `LinkPreset::loop_pass`). The median of five runs is what is compared;
 /// without the loop's pass the board charges 56% too little.
