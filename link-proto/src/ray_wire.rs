@@ -832,19 +832,7 @@ mod tests {
     /// Rays with every field on both sides of its forms' limits.
     fn arb_any_ray() -> impl proptest::strategy::Strategy<Value = RayMsg> {
         use proptest::prelude::*;
-        let sphere = SphereMsg {
-            id: 7,
-            center: [1, -2, 3],
-            radius: 9,
-            material: MaterialMsg {
-                color: [1, 2, 3],
-                ambient: 4,
-                diffuse: 5,
-                specular: 6,
-                shininess: 7,
-                reflect: 8,
-            },
-        };
+        let sphere = sphere();
         // Shares a hit splits off (powers of two, small odd multiples of them),
         // and any other.
         let scaled = (0u32..64, 0u64..4).prop_map(|(e, i)| (2 * i + 1).checked_shl(e).unwrap_or(1));

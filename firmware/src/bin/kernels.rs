@@ -187,14 +187,7 @@ fn ignore_looks(timer: &mut Timer, rng: &mut Lcg) -> (u64, u64) {
     if region.assign(grid, CubeBox { lo: [0; 3], hi: [8; 3] }).is_err() {
         return (0, 0);
     }
-    let material = MaterialMsg {
-        color: [20_000; 3],
-        ambient: 8_000,
-        diffuse: 20_000,
-        specular: 10_000,
-        shininess: 8,
-        reflect: 0,
-    };
+    let material = material(0);
     let mut leaving = heapless::Vec::<(u16, [i32; 3], [i32; 3]), 32>::new();
     for id in 0..32u16 {
         let radius = 16_384 + rng.below(1 << 16) as i32;
@@ -252,16 +245,21 @@ fn map_takes(timer: &mut Timer, rng: &mut Lcg) -> (u64, u64) {
     (ticks, taken)
 }
 
-fn sphere_list(grid: &Grid, rng: &mut Lcg) -> heapless::Vec<Sphere, SPHERES> {
-    let mut spheres = heapless::Vec::new();
-    let material = MaterialMsg {
+/// The kernels' spheres' material: grey, lit, a mirror as far as `reflect` says.
+fn material(reflect: u16) -> MaterialMsg {
+    MaterialMsg {
         color: [20_000; 3],
         ambient: 8_000,
         diffuse: 20_000,
         specular: 10_000,
         shininess: 8,
-        reflect: 16_000,
-    };
+        reflect,
+    }
+}
+
+fn sphere_list(grid: &Grid, rng: &mut Lcg) -> heapless::Vec<Sphere, SPHERES> {
+    let mut spheres = heapless::Vec::new();
+    let material = material(16_000);
     for id in 0..SPHERES as u16 {
         let radius = 3277 + rng.below(2 << 16) as i32;
         let center = [0; 3].map(|_| (8 << 16) + rng.below(240 << 16) as i32);
