@@ -2,7 +2,8 @@
 # Where a kernel's instructions go, function by function, on the emulated
 # Cortex-M3: `hop_granted` (one end of a hop on a grant, the default),
 # `trace` (a received ray's walk set-up), `sphere_hit` (a ray/sphere test
-# that hits), `reply` (a short message's end) or
+# that hits), `reply` (a short message's end), `shade` (a hit's surface and
+# both its children, a shadow ray and a reflection) or
 # `retire_batch` (retirements of six records, the host's end included, per
 # message). Builds the `kernels` binary with the `profile` feature and PROFILE_KERNEL set (it then runs only that kernel),
 # runs it under QEMU one instruction at a time (-singlestep -d exec), and sums
@@ -19,6 +20,7 @@ case "$KERNEL" in
     trace) ENTRY=kernels::walk_setups ;;
     sphere_hit) ENTRY=kernels::sphere_hits ;;
     reply) ENTRY=kernels::replies ;;
+    shade) ENTRY=kernels::shadings ;;
     retire_batch) ENTRY=kernels::retirements ;;
     *) echo "error: no kernel $KERNEL to profile (hop_granted, trace, sphere_hit, reply or retire_batch)" >&2; exit 2 ;;
 esac

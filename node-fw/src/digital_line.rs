@@ -70,6 +70,9 @@ impl DigitalLine {
     ///
     /// Returns `None` if the line does not cross the grid with positive length.
     pub fn enter(line: &Line, grid: &Grid) -> Option<Self> {
+        if let Some(cell) = origin_cell_inside(line, grid) {
+            return Self::resume(line, cell).ok();
+        }
         let (t_in, _) = entry_interval(line, grid)?;
         let o = line.origin();
         let d = line.dir();
@@ -309,6 +312,27 @@ fn entry_interval(line: &Line, grid: &Grid) -> Option<(Ratio, Ratio)> {
     }
     let t_out = t_out?;
     t_in.lt(t_out).then_some((t_in, t_out))
+}
+
+/// The cube a line starts in when its origin lies strictly inside the grid
+/// on every axis, or `None`.
+///
+/// Such a line enters at `t = 0` with a positive length inside, and its
+/// entry cube is the one [`entry_index`] finds for the origin itself: the
+/// cube below a boundary the origin lies on when moving down, else the cube
+/// at or above it. Every shadow ray and reflection from a sphere inside the
+/// grid starts so; found here without [`entry_interval`]'s 128-bit
+/// comparisons and products, which a Cortex-M3 builds from 32-bit ones
+/// (each child ray's entry took 900 instructions; see `scripts/profile-kernel.sh shade`).
+fn origin_cell_inside(line: &Line, grid: &Grid) -> Option<[i32; 3]> {
+    let axes = zip3(line.origin(), line.dir(), |o, d| (o, d));
+    let [c0, c1, c2] = zip3(axes, grid.size(), |(o, d), size| {
+        let inside = o > 0 && i64::from(o) < i64::from(size) * ONE;
+        // o > 0, so the shift is floor(o / ONE), and ceil(o / ONE) - 1
+        // moving down.
+        inside.then(|| (if d < 0 { o - 1 } else { o }) >> POS_FRAC)
+    });
+    Some([c0?, c1?, c2?])
 }
 
 /// The cube index along one axis of the entry point `num / den` (raw units,

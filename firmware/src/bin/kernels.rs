@@ -357,6 +357,7 @@ fn walk_setups(timer: &mut Timer, rays: &[RayMsg]) -> (u64, u64) {
 /// surface and both children (a shadow ray and a reflection), evaluated once
 /// (the node spawns what it evaluated; only a hit the pool cannot take all
 /// children of evaluates the rest again later).
+#[cfg_attr(feature = "profile", inline(never))]
 fn shadings(timer: &mut Timer, grid: &Grid, spheres: &[Sphere]) -> (u64, u64) {
     let header = SceneHeader {
         grid: [256; 3],
@@ -686,8 +687,8 @@ fn memcpy_is_exact() -> bool {
 }
 
 /// With the `profile` feature, only the kernel that `PROFILE_KERNEL` names at
-/// build time (`hop_granted` unless it names `trace`, `reply` or
-/// `retire_batch`), for
+/// build time (`hop_granted` unless it names `trace`, `sphere_hit`,
+/// `reply`, `shade` or `retire_batch`), for
 /// scripts/profile-kernel.sh, which traces it from its entry on: what comes
 /// before is set-up.
 fn profile(timer: &mut Timer, out: &mut Out, grid: &Grid) -> ! {
@@ -700,6 +701,10 @@ fn profile(timer: &mut Timer, out: &mut Out, grid: &Grid) -> ! {
             ("sphere_hit", sphere_hits(timer, &sphere_list(grid, &mut rng)))
         }
         Some("reply") => ("reply", replies(timer, &wire_rays(&rays))),
+        Some("shade") => {
+            let mut rng = Lcg(12345);
+            ("shade", shadings(timer, grid, &sphere_list(grid, &mut rng)))
+        }
         Some("retire_batch") => ("retire_batch", retirements(timer, &wire_rays(&rays), RETIRE_BATCH)),
         _ => ("hop_granted", granted_hops(timer, &wire_rays(&rays))),
     };
