@@ -303,7 +303,7 @@ fn csv(runs: &[AnimationRun], floors: &[ArrayFloors]) -> String {
             });
             let _ = writeln!(
                 s,
-                "{x}x{y}x{z},{},{},{},{:.4},{bound:.4},{floor_cycles},{floor_imbalance},{},{},{},{:.1},{:.1}",
+                "{x}x{y}x{z},\"{}\",{},{},{:.4},{bound:.4},{floor_cycles},{floor_imbalance},{},{},{},{:.1},{:.1}",
                 run.mode.name(),
                 r.frame,
                 r.makespan,
@@ -442,4 +442,67 @@ fn chart(cfg: &AnimationConfig, runs: &[AnimationRun]) -> Result<Vec<u8>, HostEr
         })
         .collect();
     png(&panels, 900, 320)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Splits a CSV line into its fields, a quoted field taken whole.
+    fn fields(line: &str) -> Vec<String> {
+        let (mut out, mut field, mut quoted) = (Vec::new(), String::new(), false);
+        for c in line.chars() {
+            match c {
+                '"' => quoted = !quoted,
+                ',' if !quoted => out.push(std::mem::take(&mut field)),
+                _ => field.push(c),
+            }
+        }
+        out.push(field);
+        out
+    }
+
+    #[test]
+    fn every_csv_row_has_the_header_s_fields_whatever_the_mode_is_called() {
+        let row = FrameRow {
+            frame: 3,
+            makespan: 1000,
+            imbalance: 1.5,
+            slides: 2,
+            messages: Some(9),
+            neighbour_bytes: 0,
+            host_bytes: 0,
+            rays: 10,
+            loaded: false,
+            planning_ms: 0.0,
+            plan_wait_ms: 0.0,
+            link_troubles: Default::default(),
+        };
+        let runs: Vec<AnimationRun> = Mode::ALL
+            .into_iter()
+            .map(|mode| AnimationRun {
+                array: [2; 3],
+                mode,
+                frames: vec![row.clone()],
+                row_bounds: vec![1.2],
+            })
+            .collect();
+        let ran = floor::Ran { makespan: 900, imbalance: 1.1 };
+        let floors = [ArrayFloors {
+            array: [2; 3],
+            frames: vec![FrameFloor { frame: 3, cycles: 800, imbalance: 1.05, ran }],
+        }];
+        let text = csv(&runs, &floors);
+        let mut lines = text.lines().map(fields);
+        let header = lines.next().expect("a header");
+        let slides = header.iter().position(|h| h == "slides").expect("a slides column");
+        let floor = header.iter().position(|h| h == "floor_cycles").expect("a floor column");
+        let rows: Vec<Vec<String>> = lines.collect();
+        assert_eq!(rows.len(), Mode::ALL.len());
+        for (r, mode) in rows.iter().zip(Mode::ALL) {
+            assert_eq!(r.len(), header.len(), "{r:?}");
+            assert_eq!(r[1], mode.name());
+            assert_eq!((r[slides].as_str(), r[floor].as_str()), ("2", "800"));
+        }
+    }
 }
