@@ -108,7 +108,6 @@ fn frame_floor(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use host_tool::plan::direct::cost_map;
 
     /// Every partition of the routed family on a 2x2x2 array over a 4^3
     /// grid along driving axis `d`: each cut of the slabs, of each slab's
