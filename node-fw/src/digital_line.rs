@@ -325,14 +325,16 @@ fn entry_interval(line: &Line, grid: &Grid) -> Option<(Ratio, Ratio)> {
 /// comparisons and products, which a Cortex-M3 builds from 32-bit ones
 /// (each child ray's entry took 900 instructions; see `scripts/profile-kernel.sh shade`).
 fn origin_cell_inside(line: &Line, grid: &Grid) -> Option<[i32; 3]> {
-    let axes = zip3(line.origin(), line.dir(), |o, d| (o, d));
-    let [c0, c1, c2] = zip3(axes, grid.size(), |(o, d), size| {
+    let ([o0, o1, o2], [d0, d1, d2], [n0, n1, n2]) = (line.origin(), line.dir(), grid.size());
+    // Axis by axis, so that a line from outside (every initial ray from an
+    // eye outside the grid) stops at its first axis outside.
+    let cube = |o: i32, d: i32, size: u16| {
         let inside = o > 0 && i64::from(o) < i64::from(size) * ONE;
         // o > 0, so the shift is floor(o / ONE), and ceil(o / ONE) - 1
         // moving down.
         inside.then(|| (if d < 0 { o - 1 } else { o }) >> POS_FRAC)
-    });
-    Some([c0?, c1?, c2?])
+    };
+    Some([cube(o0, d0, n0)?, cube(o1, d1, n1)?, cube(o2, d2, n2)?])
 }
 
 /// The cube index along one axis of the entry point `num / den` (raw units,

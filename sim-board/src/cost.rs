@@ -65,10 +65,10 @@ impl Default for CostModel {
     /// mostly-missing list 211.0, and one that meets its sphere ahead 1 525.7
     /// (the root and the depth: 1 307 more); a walk's
     /// set-up (the received ray's line checked, the walk resumed) 279.7; a
-    /// shaded hit with one light and a mirror 5 492.8 (the surface and both
+    /// shaded hit with one light and a mirror 5 489.2 (the surface and both
     /// children, evaluated once; a hit waiting for pool room pays again for
     /// the children it spawns later); an initial ray (pixel line, ray, entry
-    /// cube) 2 839.4. Messages through a reliable channel, whose
+    /// cube) 2 814.2. Messages through a reliable channel, whose
     /// acknowledgements ride on data going back or, with none, go alone once
     /// per half window (eight frames on a board): one end of a hop (the ray in
     /// its compact wire form, packed from where the node keeps it, the reply carrying the ray's ack, the reply's
@@ -92,8 +92,8 @@ impl Default for CostModel {
             sphere_test: 213,
             sphere_hit: 1_307,
             trace: 280,
-            shade: 5_493,
-            create: 2_839,
+            shade: 5_489,
+            create: 2_814,
             ray_message: 757,
             granted_ray: 799,
             batched_ray: 656,
